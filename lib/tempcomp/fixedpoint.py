@@ -1,0 +1,443 @@
+"""Fixed-point temperature compensation core shared by every sensor module.
+
+A sensor's offset and scale are polynomials (degree 0..3) of its own temperature reading ``t``
+(an integer: an ADC code, a register value, millivolts). Set-up turns float coefficients into
+integers once; after that ::
+
+    y = out_scale * (raw - offset(t)) / scale(t)
+
+is computed with integer arithmetic only, every intermediate inside the small-int range
+[-2**30, 2**30 - 1] of 32-bit MicroPython, so reading and compensating allocates nothing.
+
+Usage::
+
+    from tempcomp.fixedpoint import Compensator, quadratic_through
+    off = quadratic_through((1800, -12.0), (2500, 0.0), (3100, 7.5))    # raw LSB vs t
+    sc = quadratic_through((1800, 130.2), (2500, 131.0), (3100, 131.9))  # LSB per dps
+    comp = Compensator([off], [sc], t_cal=(1800, 3100), out_scale=1000)  # milli-dps out
+    comp.update(2630)          # new temperature reading: once per temperature sample
+    mdps = comp.apply(raw)     # per sample, zero allocation
+
+Two stages, with their bounds (B = 2**30 is the small-int limit):
+
+* Per temperature (``update``): each polynomial is evaluated by Horner's rule in the
+  normalised variable x = (t - t_mid) / 2**h, |x| <= 1, with coefficients scaled so that the
+  sum of their magnitudes is <= 2**28 (2**27 for scales); every partial sum is then <= 2**28.
+  A product acc*X is split into 14-bit limbs (``mul_shift``): |limb * X| <= 2**14 * 2**15.
+  The gain out_scale/scale(t) and the offset term are obtained by long division whose
+  remainder is < 2**27, shifted 3 bits a step: < 2**30.
+* Per sample (``apply``): r = raw - raw_mid with |r| <= 2**15; the gain G = gain * 2**(15+S)
+  <= 2**28 is split as G = gh * 2**15 + gl with |gh| <= 2**13, 0 <= gl < 2**15, so
+  |r*gh| <= 2**28, |r*gl| < 2**30, and the offset term |Boff| <= 2**29: the sum is < 2**30.
+  S (fraction bits) is chosen at set-up from the largest gain and kept in [5, 24]; the
+  intermediate truncations add < 2**(1 - S) <= 1/16 output LSB before the final rounding.
+
+Temperature outside the calibrated span ``t_cal`` follows the caller's policy: ``CLAMP``
+(default) holds offset and scale at the span's edge; ``EXTRAPOLATE`` evaluates the polynomials
+up to the declared input range ``t_in`` and clamps beyond it. Every clamp is counted in
+``Compensator.clamped`` so a reading outside the bounds is visible, never silently wrapped.
+"""
+
+try:
+    from micropython import const
+except ImportError:
+
+    def const(x):
+        return x
+
+
+CLAMP = const(0)
+EXTRAPOLATE = const(1)
+
+_LIMB = const(14)  # mul_shift limb: |a| <= 2**28 -> |a >> 14| <= 2**14
+_LIMB_MASK = const(0x3FFF)
+_VALUE_BITS = const(28)  # Horner partial sums of offset polynomials
+_DIV_BITS = const(27)  # scale values (the divisor) < 2**27: remainder << 3 stays < 2**30
+_DIV_STEP = const(3)
+_GAIN_LIMB = const(15)
+_GAIN_LIMB_MASK = const(0x7FFF)
+_GAIN_BITS = const(13)  # gain * 2**S <= 2**13 so |gh| <= 2**13
+_S_MIN = const(5)  # truncation error < 2**(1 - S) output LSB
+_S_MAX = const(24)
+_MAX_DEGREE = const(3)
+_SPAN_LIMIT = const(65535)  # t and raw ranges: half-span <= 2**15 keeps |x| limbs in bound
+_SCALE_RATIO = const(2)  # scale may vary at most 2x over the input range
+
+
+def mul_shift(a, x, h):
+    """Return floor(a * x / 2**h) exactly for |a| <= 2**28, |x| <= 2**15 and |x| <= 2**h."""
+    ah = a >> _LIMB
+    al = a & _LIMB_MASK
+    hi = ah * x  # |ah| <= 2**14, |x| <= 2**15: |hi| <= 2**29
+    lo = al * x  # 0 <= al < 2**14: |lo| < 2**29
+    if h >= _LIMB:
+        # a*x = hi*2**14 + lo, so floor(a*x / 2**h) = floor((hi + floor(lo / 2**14)) / 2**(h-14))
+        return (hi + (lo >> _LIMB)) >> (h - _LIMB)  # |lo >> 14| <= 2**15: sum < 2**30
+    return (hi << (_LIMB - h)) + (lo >> h)  # |hi| <= 2**(14+h): the shift gives <= 2**28
+
+
+def div_pow2(num, e, d):
+    """Return floor(num * 2**e / d) exactly for 0 < d < 2**27, |num| <= 2**28, e >= 0.
+
+    The caller guarantees the quotient is below 2**29; the remainder stays below d, and
+    (d - 1) << 3 <= 2**30 - 8, so no intermediate leaves the small-int range.
+    """
+    q = num // d
+    r = num - q * d
+    while e > 0:
+        s = _DIV_STEP if e >= _DIV_STEP else e
+        r <<= s
+        c = r // d
+        r -= c * d
+        q = (q << s) + c
+        e -= s
+    return q
+
+
+def _pow2(n):
+    # 2.0 ** n without depending on the port's pow() for negative exponents
+    v = 1.0
+    if n >= 0:
+        for _ in range(n):
+            v *= 2.0
+    else:
+        for _ in range(-n):
+            v *= 0.5
+    return v
+
+
+def _binomial(n, k):
+    r = 1
+    for i in range(k):
+        r = r * (n - i) // (i + 1)
+    return r
+
+
+def _shift_basis(coeffs, old_ref, new_ref):
+    # coefficients of powers of (t - old_ref) -> powers of (t - new_ref)
+    d = new_ref - old_ref
+    n = len(coeffs)
+    out = [0.0] * n
+    for i in range(n):
+        c = float(coeffs[i])
+        for j in range(i + 1):
+            out[j] += c * _binomial(i, j) * float(d) ** (i - j)
+    return out
+
+
+def _poly_value(coeffs, u):
+    v = 0.0
+    i = len(coeffs) - 1
+    while i >= 0:
+        v = v * u + coeffs[i]
+        i -= 1
+    return v
+
+
+def _extrema(coeffs, lo, hi):
+    # min and max of a polynomial (powers of u) over [lo, hi]: endpoints and critical points
+    pts = [float(lo), float(hi)]
+    n = len(coeffs) - 1
+    if n == 2 and coeffs[2] != 0:
+        pts.append(-coeffs[1] / (2.0 * coeffs[2]))
+    elif n == 3:
+        a, b, c = 3.0 * coeffs[3], 2.0 * coeffs[2], coeffs[1]
+        if a == 0:
+            if b != 0:
+                pts.append(-c / b)
+        else:
+            disc = b * b - 4.0 * a * c
+            if disc >= 0:
+                sq = disc**0.5
+                pts.append((-b + sq) / (2.0 * a))
+                pts.append((-b - sq) / (2.0 * a))
+    vals = [_poly_value(coeffs, p) for p in pts if lo <= p <= hi]
+    return min(vals), max(vals)
+
+
+def _check_range(name, rng):
+    lo, hi = rng
+    if not isinstance(lo, int) or not isinstance(hi, int):
+        raise ValueError("%s must be a pair of ints, got %r" % (name, rng))
+    if hi <= lo:
+        raise ValueError("%s: upper end %d must exceed lower end %d" % (name, hi, lo))
+    if hi - lo > _SPAN_LIMIT:
+        raise ValueError("%s spans %d counts; at most %d are supported" % (name, hi - lo, _SPAN_LIMIT))
+    return lo, hi
+
+
+def _check_coeffs(name, coeffs):
+    n = len(coeffs)
+    if n < 1 or n > _MAX_DEGREE + 1:
+        raise ValueError("%s: degree %d not supported (0..%d)" % (name, n - 1, _MAX_DEGREE))
+    for c in coeffs:
+        c = float(c)
+        if c != c or c in (float("inf"), float("-inf")):
+            raise ValueError("%s: coefficient %r is not finite" % (name, c))
+
+
+class Poly:
+    """p(t) = sum c[i] * (t - t_ref)**i in fixed point for integer t in [t_lo, t_hi].
+
+    ``eval(t)`` returns round(p(t) * 2**frac) within a few units, where ``frac`` is chosen so
+    that all Horner partial sums stay <= 2**limit. Zero allocation per ``eval``.
+    """
+
+    def __init__(self, coeffs, t_range, t_ref=0, limit=_VALUE_BITS, max_frac=60):
+        _check_coeffs("polynomial", coeffs)
+        t_lo, t_hi = _check_range("temperature range", t_range)
+        mid = (t_lo + t_hi) // 2
+        half = max(t_hi - mid, mid - t_lo)
+        h = 0
+        while (1 << h) < half:
+            h += 1
+        # coefficients of x = (t - mid) / 2**h, so |x| <= 1 over the range
+        b = _shift_basis(coeffs, t_ref, mid)
+        n = [b[j] * _pow2(h * j) for j in range(len(b))]
+        while len(n) > 1 and n[-1] == 0:
+            n.pop()
+        total = sum(abs(v) for v in n)
+        budget = _pow2(limit) * (1.0 - 1.0 / 1024)  # room for coefficient rounding
+        frac = max_frac
+        if total > 0:
+            frac = 0
+            while total * _pow2(frac + 1) <= budget and frac < max_frac:
+                frac += 1
+            while total * _pow2(frac) > budget:
+                frac -= 1
+        self.frac = frac
+        self.t_range = (t_lo, t_hi)
+        self._mid = mid
+        self._h = h
+        self._a = tuple(int(round(v * _pow2(frac))) for v in n)
+        self._deg = len(n) - 1
+        self._coeffs_mid = b  # float coefficients of (t - mid), for set-up checks
+
+    def eval(self, t):
+        """Fixed-point value at integer reading t (caller keeps t inside t_range)."""
+        a = self._a
+        i = self._deg
+        acc = a[i]
+        x = t - self._mid
+        h = self._h
+        while i > 0:
+            i -= 1
+            acc = a[i] + mul_shift(acc, x, h)
+        return acc
+
+    def extrema(self):
+        """(min, max) of the float polynomial over t_range (set-up use)."""
+        lo, hi = self.t_range
+        return _extrema(self._coeffs_mid, lo - self._mid, hi - self._mid)
+
+
+def quadratic_through(p0, p1, p2, t_ref=None):
+    """Coefficients (c0, c1, c2) of powers of (t - t_ref) through three (t, y) points.
+
+    Newton's divided differences in float: the AN2/AN-1049 closed forms multiply four
+    millivolt values (~2**45) and overflow 32-bit integers; this form never does.
+    ``t_ref`` defaults to the middle point's t.
+    """
+    (t0, y0), (t1, y1), (t2, y2) = p0, p1, p2
+    if t0 == t1 or t1 == t2 or t0 == t2:
+        raise ValueError("quadratic_through: temperatures %r, %r, %r must differ" % (t0, t1, t2))
+    if t_ref is None:
+        t_ref = t1
+    d01 = (float(y1) - y0) / (float(t1) - t0)
+    d12 = (float(y2) - y1) / (float(t2) - t1)
+    d012 = (d12 - d01) / (float(t2) - t0)
+    # y = y0 + d01 (t - t0) + d012 (t - t0)(t - t1), re-expanded about t_ref
+    a = float(t0) - t_ref
+    b = float(t1) - t_ref
+    c2 = d012
+    c1 = d01 - d012 * (a + b)
+    c0 = y0 - d01 * a + d012 * a * b
+    return (c0, c1, c2)
+
+
+class Compensator:
+    """out_scale * (raw - offset(t)) / scale(t) for N axes sharing one temperature reading.
+
+    offsets, scales: one coefficient sequence per axis (powers of t - t_ref; raw LSB and
+    raw LSB per physical unit). t_cal: calibrated span of the reading; t_in: the readings the
+    bounds are proven for (default: t_cal with CLAMP, t_cal widened by half its span with
+    EXTRAPOLATE). raw_range: the raw codes (at most 65536 of them, signed or unsigned).
+    """
+
+    def __init__(
+        self,
+        offsets,
+        scales,
+        t_cal,
+        t_in=None,
+        out_scale=1.0,
+        raw_range=(-32768, 32767),
+        policy=CLAMP,
+        t_ref=0,
+    ):
+        if len(offsets) != len(scales) or not offsets:
+            raise ValueError("need one offset and one scale polynomial per axis")
+        if policy not in (CLAMP, EXTRAPOLATE):
+            raise ValueError("policy must be CLAMP or EXTRAPOLATE, got %r" % (policy,))
+        c_lo, c_hi = _check_range("t_cal", t_cal)
+        if t_in is None:
+            if policy == EXTRAPOLATE:
+                w = (c_hi - c_lo) // 2
+                t_in = (c_lo - w, c_hi + w)
+            else:
+                t_in = (c_lo, c_hi)
+        i_lo, i_hi = _check_range("t_in", t_in)
+        if i_lo > c_lo or i_hi < c_hi:
+            raise ValueError("t_in %r must contain t_cal %r" % (t_in, t_cal))
+        r_lo, r_hi = _check_range("raw_range", raw_range)
+        out_scale = float(out_scale)
+        if not out_scale > 0 or out_scale == float("inf"):
+            raise ValueError("out_scale must be a positive number, got %r" % (out_scale,))
+        self.policy = policy
+        self.t_cal = (c_lo, c_hi)
+        self.t_in = (i_lo, i_hi)
+        self.raw_range = (r_lo, r_hi)
+        self.out_scale = out_scale
+        if policy == CLAMP:
+            self._t_lo, self._t_hi = c_lo, c_hi
+        else:
+            self._t_lo, self._t_hi = i_lo, i_hi
+        mid = (r_lo + r_hi + 1) // 2  # |raw - mid| <= 2**15
+        self._mid = mid
+        n = len(offsets)
+        self.axes = n
+        ev = (self._t_lo, self._t_hi)
+        gain_max = 0.0
+        offs = []
+        scs = []
+        for k in range(n):
+            _check_coeffs("offset[%d]" % k, offsets[k])
+            _check_coeffs("scale[%d]" % k, scales[k])
+            o = [float(c) for c in offsets[k]]
+            o[0] -= mid
+            s = [float(c) / out_scale for c in scales[k]]
+            sp = Poly(s, ev, t_ref, limit=_DIV_BITS)
+            s_min, s_max = sp.extrema()
+            if not s_min > 0:
+                raise ValueError(
+                    "scale[%d] must be positive over t %r (min %r); flip the axis sign in "
+                    "the offset and raw instead" % (k, ev, s_min * out_scale)
+                )
+            if s_max > _SCALE_RATIO * s_min:
+                raise ValueError(
+                    "scale[%d] varies more than %dx over t %r (%r..%r): not a sensor's "
+                    "temperature drift; check the coefficients" % (k, _SCALE_RATIO, ev, s_min, s_max)
+                )
+            gain_max = max(gain_max, 1.0 / s_min)
+            offs.append(o)
+            scs.append(sp)
+        # S: largest fraction with gain * 2**S <= 2**13 (|gh| <= 2**13), with a rounding margin
+        limit = _pow2(_GAIN_BITS) * (1.0 - 1.0 / 1024)
+        S = _S_MAX
+        while S >= _S_MIN and gain_max * _pow2(S) > limit:
+            S -= 1
+        if S < _S_MIN:
+            raise ValueError(
+                "output unit too fine: %r output units per raw LSB; at most %r are supported, "
+                "use a smaller out_scale" % (gain_max, limit / _pow2(_S_MIN))
+            )
+        self._s = S
+        self._half = 1 << (S - 1)
+        self._off = []
+        self._sc = scs
+        self._eo = []
+        self._eg = []
+        for k in range(n):
+            sp = scs[k]
+            op = Poly(offs[k], ev, t_ref, limit=_VALUE_BITS, max_frac=S + sp.frac)
+            o_min, o_max = op.extrema()
+            if max(-o_min, o_max) > 65536:
+                raise ValueError(
+                    "offset[%d] reaches %r raw LSB from the raw range's middle over t %r: "
+                    "outside the raw range %r" % (k, max(-o_min, o_max), ev, raw_range)
+                )
+            self._off.append(op)
+            # G = gain * 2**(15+S) = 2**(15+S+Fs) / D ; Boff = off * gain * 2**S
+            self._eg.append(_GAIN_LIMB + S + sp.frac + 1)  # one extra bit for rounding
+            self._eo.append(S + sp.frac - op.frac)
+        self._gh = [0] * n
+        self._gl = [0] * n
+        self._b = [0] * n
+        self.clamped = 0
+        self._t = None
+        self.update(self._t_lo)
+
+    def update(self, t):
+        """Set the temperature reading used by apply(); zero allocation."""
+        if t < self._t_lo:
+            t = self._t_lo
+            self.clamped += 1
+        elif t > self._t_hi:
+            t = self._t_hi
+            self.clamped += 1
+        if t == self._t:
+            return
+        self._t = t
+        for k in range(self.axes):
+            d = self._sc[k].eval(t)
+            g = (_gain_num(self._eg[k], d) + 1) >> 1
+            self._gh[k] = g >> _GAIN_LIMB
+            self._gl[k] = g & _GAIN_LIMB_MASK
+            # floor, not round: apply()'s floor of r*gl/2**15 errs the other way, so the two
+            # truncations partly cancel
+            self._b[k] = div_pow2(self._off[k].eval(t), self._eo[k], d)
+
+    def apply(self, raw, axis=0):
+        """Compensated value of one raw code (inside raw_range) in output units."""
+        r = raw - self._mid
+        return (r * self._gh[axis] + ((r * self._gl[axis]) >> _GAIN_LIMB) - self._b[axis] + self._half) >> self._s
+
+    def apply_be16(self, buf, out):
+        """Compensate big-endian int16 words (axis i at buf[2i:2i+2]) into out[i]."""
+        gh = self._gh
+        gl = self._gl
+        b = self._b
+        s = self._s
+        half = self._half
+        mid = self._mid
+        i = 0
+        j = 0
+        n = self.axes
+        while i < n:
+            v = buf[j] << 8 | buf[j + 1]
+            if v & 0x8000:
+                v -= 0x10000
+            r = v - mid
+            out[i] = (r * gh[i] + ((r * gl[i]) >> _GAIN_LIMB) - b[i] + half) >> s
+            i += 1
+            j += 2
+
+    def value(self, t, raw, axis=0):
+        """update(t) then apply(raw, axis)."""
+        self.update(t)
+        return self.apply(raw, axis)
+
+    def shift_offset(self, axis, delta_raw):
+        """Add delta_raw (raw LSB, float ok) to offset(t) from now on (set-up, e.g. a re-zero)."""
+        op = self._off[axis]
+        # rebuild the offset polynomial with the shifted constant term; set-up only
+        c = list(op._coeffs_mid)
+        c[0] += float(delta_raw)
+        lo, hi = op.t_range
+        mid = (lo + hi) // 2
+        np_ = Poly(c, op.t_range, mid, limit=_VALUE_BITS, max_frac=self._s + self._sc[axis].frac)
+        o_min, o_max = np_.extrema()
+        if max(-o_min, o_max) > 65536:
+            raise ValueError("offset shift %r takes offset[%d] outside the raw range" % (delta_raw, axis))
+        self._off[axis] = np_
+        self._eo[axis] = self._s + self._sc[axis].frac - np_.frac
+        t = self._t
+        self._t = None
+        self.update(t)
+
+
+def _gain_num(e, d):
+    # floor(2**e / d): start from 2**28 so the first quotient already has leading bits
+    if e <= _VALUE_BITS:
+        return div_pow2(1 << e, 0, d)
+    return div_pow2(1 << _VALUE_BITS, e - _VALUE_BITS, d)
