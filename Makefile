@@ -1,0 +1,49 @@
+# tempcomp: `make demo` runs the main job on the virtual board, `make test` runs every test.
+# Both set up what they need first (`make setup`): a .venv from requirements.txt and the
+# node tools (MicroPython WebAssembly VM, pyright) from tools/package-lock.json.
+
+PYTHON ?= python3
+VENV := .venv
+PY := $(VENV)/bin/python
+NODE_MODULES := tools/node_modules
+PORT ?=
+BOARD ?= virtual
+PYTEST_ARGS ?=
+
+.PHONY: setup test demo bench mpy typecheck lint deploy clean
+
+setup: $(VENV)/.stamp $(NODE_MODULES)/.stamp
+
+$(VENV)/.stamp: requirements.txt
+	test -x $(PY) || $(PYTHON) -m venv $(VENV)
+	$(PY) -m pip install --quiet --disable-pip-version-check -r requirements.txt
+	touch $@
+
+$(NODE_MODULES)/.stamp: tools/package.json tools/package-lock.json
+	cd tools && npm ci --no-audit --no-fund --loglevel=error
+	touch $@
+
+test: setup typecheck
+	$(PY) -m ruff check lib boards tools host_tests
+	$(PY) -m pytest host_tests -q $(PYTEST_ARGS)
+
+typecheck: setup
+	$(NODE_MODULES)/.bin/pyright -p pyrightconfig.json
+
+lint: setup
+	$(PY) -m ruff check lib boards tools host_tests
+
+demo: setup
+	$(PY) -m tools.demo
+
+bench: setup
+	$(PY) -m tools.bench
+
+mpy: setup
+	$(PY) -m tools.build_mpy build/mpy
+
+deploy: setup
+	$(PY) -m tools.deploy --port "$(PORT)" --board "$(BOARD)"
+
+clean:
+	rm -rf build $(VENV) $(NODE_MODULES)

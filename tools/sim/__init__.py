@@ -1,0 +1,1 @@
+"""Register-accurate simulated sensors and buses (MicroPython-compatible, except blinka.py)."""
