@@ -104,6 +104,10 @@ def fit_means(mean, temps, counts_per_g, g_dirs=None, se=None, order=1, t_room=2
         G = np.asarray(g_dirs, dtype=np.float64)
         if G.shape != (O, 3):
             raise FitError("g_dirs must have one 3-vector per orientation (%d), got %s" % (O, G.shape))
+        for a in range(3):
+            if G[:, a].max() < 0.5 or G[:, a].min() > -0.5:
+                raise FitError("missing orientation: no orientation points axis %s %s (each axis needs one "
+                               "near +1 g and one near -1 g)" % ("xyz"[a], "up" if G[:, a].max() < 0.5 else "down"))
         D = np.hstack([np.ones((O, 1)), G])
         if np.linalg.matrix_rank(D) < 4:
             raise FitError("missing orientation: the %d orientations do not point every axis both up and "
