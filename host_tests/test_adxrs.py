@@ -8,9 +8,9 @@ import sys
 
 import numpy as np
 import pytest
+
 from tempcomp.adxrs import AnalogGyro, point
 from tempcomp.fixedpoint import quadratic_through
-
 from tools.fit import adxrs as FA
 from tools.fit.common import FitError
 from tools.sim.analog_gyro_sim import AnalogGyroSim, ReplayADC

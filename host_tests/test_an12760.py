@@ -7,12 +7,11 @@ import sys
 
 import numpy as np
 import pytest
+
 from tempcomp import record
 from tempcomp.an12760 import AN12760, decode_record
 from tempcomp.fixedpoint import EXTRAPOLATE
-
 from tools.fit import an12760 as F
-from tools.fit.common import FitError
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 

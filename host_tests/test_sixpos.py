@@ -8,9 +8,9 @@ import sys
 
 import numpy as np
 import pytest
+
 from tempcomp.an12760 import AN12760
 from tempcomp.crossaxis import CrossAxis
-
 from tools.fit import simulate as S
 from tools.fit import sixpos as P
 from tools.fit.common import FitError

@@ -4,8 +4,8 @@ import os
 
 import numpy as np
 from mpvm import alloc_lines
-from tempcomp.an12760 import AN12760
 
+from tempcomp.an12760 import AN12760
 from tools.fit import an12760 as F
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))

@@ -27,7 +27,7 @@ Coefficient record (``tempcomp.record`` kind KIND_AN12760), values in order:
 """
 
 from tempcomp import record
-from tempcomp.fixedpoint import CLAMP, Compensator
+from tempcomp.fixedpoint import CLAMP, Compensator, _shift_basis
 
 _PER_AXIS = 8
 
@@ -105,6 +105,7 @@ class AN12760:
         # dT = T - Troom = t_scale * (code - code_room): coefficients of powers of
         # (code - code_room), so the fixed-point core works on the raw temperature code
         code_room = (self.t_room - self.t_offset) / t_scale
+        ref = int(round(code_room))
         cpm = counts_per_g / 1000.0  # raw counts per mg
         offs = []
         scs = []
@@ -117,15 +118,16 @@ class AN12760:
                 o.append(tco[i] * p * cpm)
                 s.append(tcs[i] * p)
             s = _poly_mul([counts_per_g * (1.0 + sen)], s)  # counts per g at dT
-            offs.append(_trim(o))
-            scs.append(_trim(s))
+            # re-expanded about the nearest integer code: the core takes an integer t_ref
+            offs.append(_trim(_shift_basis(o, code_room, ref)))
+            scs.append(_trim(_shift_basis(s, code_room, ref)))
         t_cal = _code_span(lo_c, hi_c, self.t_offset, t_scale)
         t_in = None
         if t_in_c is not None:
             t_in = _code_span(float(t_in_c[0]), float(t_in_c[1]), self.t_offset, t_scale)
         self.comp = Compensator(
             offs, scs, t_cal, t_in=t_in, out_scale=out_per_g, raw_range=raw_range,
-            policy=policy, t_ref=code_room,
+            policy=policy, t_ref=ref,
         )
         self.axes = len(axes)
         self.update = self.comp.update

@@ -18,7 +18,6 @@ from tools.fit.common import FitError
 
 def _an12760(args):
     from tempcomp import record
-
     from tools.fit import an12760
     from tools.fit.common import numeric, read_csv
 

@@ -79,7 +79,7 @@ def fit_means(mean, temps, counts_per_g, g_dirs=None, se=None, order=1, t_room=2
     mean = np.asarray(mean, dtype=np.float64)
     if mean.ndim != 4 or mean.shape[-1] != 3:
         raise FitError("means must have shape (units, temperatures, orientations, 3)")
-    U, T, O, _ = mean.shape
+    U, T, NO, _ = mean.shape
     if not np.isfinite(mean).all():
         u, t, o, a = (int(i) for i in np.argwhere(~np.isfinite(mean))[0])
         raise FitError("NaN/inf in the data: unit %d, temperature %d, orientation %d, axis %s" % (u, t, o, "xyz"[a]))
@@ -95,29 +95,29 @@ def fit_means(mean, temps, counts_per_g, g_dirs=None, se=None, order=1, t_room=2
     se_x = se / cpg if se is not None else None
     if ellipsoid:
         b, M, res = _ellipsoid(x)
-        dof = O - 9
+        dof = NO - 9
         misalign = None
         se_b = se_M = None
     else:
         if g_dirs is None:
             raise FitError("known orientations (g_dirs) are needed unless ellipsoid=True")
         G = np.asarray(g_dirs, dtype=np.float64)
-        if G.shape != (O, 3):
-            raise FitError("g_dirs must have one 3-vector per orientation (%d), got %s" % (O, G.shape))
+        if G.shape != (NO, 3):
+            raise FitError("g_dirs must have one 3-vector per orientation (%d), got %s" % (NO, G.shape))
         for a in range(3):
             if G[:, a].max() < 0.5 or G[:, a].min() > -0.5:
                 raise FitError("missing orientation: no orientation points axis %s %s (each axis needs one "
                                "near +1 g and one near -1 g)" % ("xyz"[a], "up" if G[:, a].max() < 0.5 else "down"))
-        D = np.hstack([np.ones((O, 1)), G])
+        D = np.hstack([np.ones((NO, 1)), G])
         if np.linalg.matrix_rank(D) < 4:
             raise FitError("missing orientation: the %d orientations do not point every axis both up and "
-                           "down (the design has rank %d of 4); add the missing ones" % (O, np.linalg.matrix_rank(D)))
+                           "down (the design has rank %d of 4); add the missing ones" % (NO, np.linalg.matrix_rank(D)))
         Pinv = np.linalg.pinv(D)  # (4, O)
         par = np.einsum("ko,utoa->utka", Pinv, x)
         b = par[:, :, 0, :]
         M = np.swapaxes(par[:, :, 1:, :], 2, 3)  # M[a, j] = par[1 + j, a]
         res = x - np.einsum("ok,utka->utoa", D, par)
-        dof = O - 4
+        dof = NO - 4
         cov = np.linalg.inv(D.T @ D)
         # noise of the means: from the samples if given, else from the residuals
         if se_x is not None:
@@ -171,10 +171,10 @@ def fit_means(mean, temps, counts_per_g, g_dirs=None, se=None, order=1, t_room=2
 
 def _ellipsoid(x):
     """Quadric fit per (unit, temperature): x (U, T, O, 3) in g -> b (U,T,3), symmetric M, residuals."""
-    U, T, O, _ = x.shape
-    if O < 9:
+    U, T, NO, _ = x.shape
+    if NO < 9:
         raise FitError("ellipsoid fit needs at least 9 orientations, the data has %d; use known orientations "
-                       "(six-position) or measure more" % O)
+                       "(six-position) or measure more" % NO)
     X, Y, Z = x[..., 0], x[..., 1], x[..., 2]
     H = np.stack([X * X, Y * Y, Z * Z, 2 * X * Y, 2 * X * Z, 2 * Y * Z, 2 * X, 2 * Y, 2 * Z], axis=-1)
     Ht = np.swapaxes(H, 2, 3)
@@ -184,7 +184,7 @@ def _ellipsoid(x):
         u, t = (int(i) for i in np.argwhere(rank < 9)[0])
         raise FitError("ellipsoid fit: unit %d temperature %d: the orientations do not cover the sphere "
                        "(rank %d of 9); add orientations" % (u, t, rank[u, t]))
-    p = np.linalg.solve(HtH, Ht @ np.ones((U, T, O, 1)))[..., 0]
+    p = np.linalg.solve(HtH, Ht @ np.ones((U, T, NO, 1)))[..., 0]
     Q = np.empty((U, T, 3, 3))
     Q[..., 0, 0], Q[..., 1, 1], Q[..., 2, 2] = p[..., 0], p[..., 1], p[..., 2]
     Q[..., 0, 1] = Q[..., 1, 0] = p[..., 3]
@@ -235,9 +235,9 @@ def fit_csv(path, counts_per_g, order=1, t_room=25.0, ellipsoid=False, raw_range
     if len(centres) < 2:
         raise FitError("only one temperature (%.2f degC): temperature laws need at least 2" % centres[0])
     orients = sorted(gvec)
-    O = len(orients)
-    mean = np.empty((1, len(centres), O, 3))
-    se = np.zeros((1, len(centres), O, 3))
+    NO = len(orients)
+    mean = np.empty((1, len(centres), NO, 3))
+    se = np.zeros((1, len(centres), NO, 3))
     temps = np.empty(len(centres))
     for k, c in enumerate(centres):
         m = idx == k
