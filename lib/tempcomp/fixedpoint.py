@@ -26,11 +26,13 @@ Two stages, with their bounds (B = 2**30 is the small-int limit):
   A product acc*X is split into 14-bit limbs (``mul_shift``): |limb * X| <= 2**14 * 2**15.
   The gain out_scale/scale(t) and the offset term are obtained by long division whose
   remainder is < 2**27, shifted 3 bits a step: < 2**30.
-* Per sample (``apply``): r = raw - raw_mid with |r| <= 2**15; the gain G = gain * 2**(15+S)
-  <= 2**28 is split as G = gh * 2**15 + gl with |gh| <= 2**13, 0 <= gl < 2**15, so
-  |r*gh| <= 2**28, |r*gl| < 2**30, and the offset term |Boff| <= 2**29: the sum is < 2**30.
+* Per sample (``apply``): r = raw - raw_mid with |r| <= 2**K (K <= 15: the raw range's
+  half-span); the gain G = gain * 2**(K+S) <= 2**28 is split as G = gh * 2**K + gl with
+  |gh| <= 2**(28-K), 0 <= gl < 2**K, so |r*gh| <= 2**28, |r*gl| < 2**30, and the offset term
+  |Boff| = |offset - raw_mid| * gain * 2**S <= 2**(K+1) * 2**(28-K) = 2**29: the sum < 2**30.
   S (fraction bits) is chosen at set-up from the largest gain and kept in [5, 24]; the
-  intermediate truncations add < 2**(1 - S) <= 1/16 output LSB before the final rounding.
+  intermediate truncations add < 2**(1 - S) <= 1/16 output LSB before the final rounding,
+  and the scale's 27-bit evaluation adds about |y| * 2**-24 (|y| the output magnitude).
 
 Temperature outside the calibrated span ``t_cal`` follows the caller's policy: ``CLAMP``
 (default) holds offset and scale at the span's edge; ``EXTRAPOLATE`` evaluates the polynomials
@@ -54,9 +56,7 @@ _LIMB_MASK = const(0x3FFF)
 _VALUE_BITS = const(28)  # Horner partial sums of offset polynomials
 _DIV_BITS = const(27)  # scale values (the divisor) < 2**27: remainder << 3 stays < 2**30
 _DIV_STEP = const(3)
-_GAIN_LIMB = const(15)
-_GAIN_LIMB_MASK = const(0x7FFF)
-_GAIN_BITS = const(13)  # gain * 2**S <= 2**13 so |gh| <= 2**13
+_GAIN_BITS = const(28)  # G = gain * 2**(K+S) <= 2**28: the long division's quotient bound
 _S_MIN = const(5)  # truncation error < 2**(1 - S) output LSB
 _S_MAX = const(24)
 _MAX_DEGREE = const(3)
@@ -302,8 +302,14 @@ class Compensator:
             self._t_lo, self._t_hi = c_lo, c_hi
         else:
             self._t_lo, self._t_hi = i_lo, i_hi
-        mid = (r_lo + r_hi + 1) // 2  # |raw - mid| <= 2**15
+        mid = (r_lo + r_hi + 1) // 2
+        # K: bits of the raw half-span, |raw - mid| <= 2**K <= 2**15; also the gain's limb
+        K = 1
+        while (1 << K) < max(r_hi - mid, mid - r_lo):
+            K += 1
         self._mid = mid
+        self._k = K
+        self._kmask = (1 << K) - 1
         n = len(offsets)
         self.axes = n
         ev = (self._t_lo, self._t_hi)
@@ -331,8 +337,8 @@ class Compensator:
             gain_max = max(gain_max, 1.0 / s_min)
             offs.append(o)
             scs.append(sp)
-        # S: largest fraction with gain * 2**S <= 2**13 (|gh| <= 2**13), with a rounding margin
-        limit = _pow2(_GAIN_BITS) * (1.0 - 1.0 / 1024)
+        # S: largest fraction with G = gain * 2**(K+S) <= 2**28, with a rounding margin
+        limit = _pow2(_GAIN_BITS - K) * (1.0 - 1.0 / 1024)
         S = _S_MAX
         while S >= _S_MIN and gain_max * _pow2(S) > limit:
             S -= 1
@@ -351,14 +357,14 @@ class Compensator:
             sp = scs[k]
             op = Poly(offs[k], ev, t_ref, limit=_VALUE_BITS, max_frac=S + sp.frac)
             o_min, o_max = op.extrema()
-            if max(-o_min, o_max) > 65536:
+            if max(-o_min, o_max) > (2 << K):
                 raise ValueError(
                     "offset[%d] reaches %r raw LSB from the raw range's middle over t %r: "
                     "outside the raw range %r" % (k, max(-o_min, o_max), ev, raw_range)
                 )
             self._off.append(op)
-            # G = gain * 2**(15+S) = 2**(15+S+Fs) / D ; Boff = off * gain * 2**S
-            self._eg.append(_GAIN_LIMB + S + sp.frac + 1)  # one extra bit for rounding
+            # G = gain * 2**(K+S) = 2**(K+S+Fs) / D ; Boff = off * gain * 2**S
+            self._eg.append(K + S + sp.frac + 1)  # one extra bit for rounding
             self._eo.append(S + sp.frac - op.frac)
         self._gh = [0] * n
         self._gl = [0] * n
@@ -381,8 +387,8 @@ class Compensator:
         for k in range(self.axes):
             d = self._sc[k].eval(t)
             g = (_gain_num(self._eg[k], d) + 1) >> 1
-            self._gh[k] = g >> _GAIN_LIMB
-            self._gl[k] = g & _GAIN_LIMB_MASK
+            self._gh[k] = g >> self._k
+            self._gl[k] = g & self._kmask
             # floor, not round: apply()'s floor of r*gl/2**15 errs the other way, so the two
             # truncations partly cancel
             self._b[k] = div_pow2(self._off[k].eval(t), self._eo[k], d)
@@ -390,7 +396,7 @@ class Compensator:
     def apply(self, raw, axis=0):
         """Compensated value of one raw code (inside raw_range) in output units."""
         r = raw - self._mid
-        return (r * self._gh[axis] + ((r * self._gl[axis]) >> _GAIN_LIMB) - self._b[axis] + self._half) >> self._s
+        return (r * self._gh[axis] + ((r * self._gl[axis]) >> self._k) - self._b[axis] + self._half) >> self._s
 
     def apply_be16(self, buf, out):
         """Compensate big-endian int16 words (axis i at buf[2i:2i+2]) into out[i]."""
@@ -400,6 +406,7 @@ class Compensator:
         s = self._s
         half = self._half
         mid = self._mid
+        k = self._k
         i = 0
         j = 0
         n = self.axes
@@ -408,7 +415,7 @@ class Compensator:
             if v & 0x8000:
                 v -= 0x10000
             r = v - mid
-            out[i] = (r * gh[i] + ((r * gl[i]) >> _GAIN_LIMB) - b[i] + half) >> s
+            out[i] = (r * gh[i] + ((r * gl[i]) >> k) - b[i] + half) >> s
             i += 1
             j += 2
 
@@ -427,7 +434,7 @@ class Compensator:
         mid = (lo + hi) // 2
         np_ = Poly(c, op.t_range, mid, limit=_VALUE_BITS, max_frac=self._s + self._sc[axis].frac)
         o_min, o_max = np_.extrema()
-        if max(-o_min, o_max) > 65536:
+        if max(-o_min, o_max) > (2 << self._k):
             raise ValueError("offset shift %r takes offset[%d] outside the raw range" % (delta_raw, axis))
         self._off[axis] = np_
         self._eo[axis] = self._s + self._sc[axis].frac - np_.frac
