@@ -57,7 +57,7 @@ def test_div_pow2_is_exact_floor_within_bounds():
 def _bounded(comp):
     bind(comp, ["_gh", "_gl", "_b", "_s", "_half", "_mid", "_eo", "_eg", "_k", "_kmask"])
     for p in comp._sc + comp._off:
-        bind(p, ["_a", "_mid", "_h"])
+        bind(p, ["_a", "_a0", "_mid", "_h", "_vs", "_vr"])
     comp._t = None
     return comp
 
@@ -177,7 +177,7 @@ def test_quadratic_through_reproduces_points_and_matches_lagrange():
     for _ in range(200):
         ts = sorted(rng.sample(range(-3000, 5000), 3))
         pts = [(t, rng.uniform(-3000, 3000)) for t in ts]
-        c = fp.quadratic_through(*pts)
+        c = fp.quadratic_through(*pts, t_ref=pts[1][0])
         for t, y in pts:
             assert _f64(c, t, pts[1][0]) == pytest.approx(y, abs=1e-9 * max(1.0, abs(y)))
         for t in np.linspace(ts[0], ts[2], 17):
@@ -187,8 +187,8 @@ def test_quadratic_through_reproduces_points_and_matches_lagrange():
 def test_quadratic_through_fixed_point_reproduces_its_points():
     pts_off = [(1850, 1003.4), (2500, 1008.0), (3100, 1011.9)]
     pts_sc = [(1850, 12.41), (2500, 12.80), (3100, 13.02)]
-    off = fp.quadratic_through(*pts_off, t_ref=0)
-    sc = fp.quadratic_through(*pts_sc, t_ref=0)
+    off = fp.quadratic_through(*pts_off)
+    sc = fp.quadratic_through(*pts_sc)
     comp = fp.Compensator([off], [sc], (1850, 3100), out_scale=1000.0, raw_range=(0, 2047))
     for (t, o), (_, s) in zip(pts_off, pts_sc):
         comp.update(t)
