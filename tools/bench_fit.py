@@ -103,7 +103,6 @@ def _fit_bench(report, units=10000, chunk=1000):
 def _precision(report):
     from tempcomp.an12760 import AN12760
     from tempcomp.crossaxis import CrossAxis
-
     from tools.fit import an12760 as F
 
     rng = np.random.default_rng(1)
