@@ -16,7 +16,7 @@ from tools.fit.common import FitError, check_temperatures, group_temperatures, n
 def points_from_rows(temp_c, vt_mv, rate_dps, out_mv, lines=None, temp_tol=1.0):
     """Per-temperature (temp_c, VT mV, V0 mV, S mV/dps, rms mV) rows and the warnings."""
     centres, idx = group_temperatures(temp_c, lines, temp_tol)
-    warnings = check_temperatures(centres, 2, "three-point quadratic")
+    warnings = check_temperatures(centres, 2, "three-point quadratic", warn_exact=False)
     rates_all = np.unique(np.round(rate_dps, 6))
     pts = []
     for k, c in enumerate(centres):

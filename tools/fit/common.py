@@ -122,7 +122,7 @@ def group_temperatures(temp_c, lines=None, tol=1.0):
     return centres, idx
 
 
-def check_temperatures(centres, order, what="fit", min_gap=5.0, min_span=20.0):
+def check_temperatures(centres, order, what="fit", min_gap=5.0, min_span=20.0, warn_exact=True):
     """FitError when there are too few temperatures for ``order``; warnings when marginal."""
     warnings = []
     n = len(centres)
@@ -137,7 +137,7 @@ def check_temperatures(centres, order, what="fit", min_gap=5.0, min_span=20.0):
             "use --order %d or measure more temperatures"
             % (order, what, order + 1, n, ", ".join("%.1f" % c for c in centres), n - 1)
         )
-    if n == order + 1 and order > 1:
+    if n == order + 1 and order > 1 and warn_exact:
         warnings.append(
             "%d temperatures for an order-%d law: the fit passes through every point and "
             "nothing checks it; measure more temperatures" % (n, order)

@@ -44,3 +44,49 @@ def chamber(tr, temps, g_dirs, samples, cpg, rng, noise_counts=8.0, t_room=25.0,
     clean = off[:, :, None, :] + np.einsum("utaj,oj->utoa", M, g_dirs)  # (U,T,O,3)
     noise = rng.normal(0, noise_counts, (U, len(dT), len(g_dirs), samples, 3))
     return np.rint(clean[:, :, :, None, :] + noise).astype(dtype)
+
+
+def _main(argv=None):
+    """Write a simulated chamber CSV (for trying the tools without a chamber)."""
+    import argparse
+    import csv
+    import os
+    import sys
+
+    p = argparse.ArgumentParser(prog="python -m tools.fit.simulate", description=_main.__doc__)
+    p.add_argument("kind", choices=["sixpos", "adxrs"])
+    p.add_argument("out", help="CSV file to write")
+    p.add_argument("--seed", type=int, default=1)
+    p.add_argument("--counts-per-g", type=float, default=16384.0)
+    p.add_argument("--samples", type=int, default=20)
+    a = p.parse_args(argv)
+    rng = np.random.default_rng(a.seed)
+    temps = [-40.0, 25.0, 85.0]
+    with open(a.out, "w", newline="") as f:
+        w = csv.writer(f)
+        if a.kind == "sixpos":
+            raw = chamber(truth(1, rng), temps, SIX, a.samples, a.counts_per_g, rng)
+            labels = ["+x", "-x", "+y", "-y", "+z", "-z"]
+            w.writerow(["temp_c", "orient", "ax", "ay", "az"])
+            for k, t in enumerate(temps):
+                for o, lab in enumerate(labels):
+                    for s in raw[0, k, o]:
+                        w.writerow([t, lab] + [int(v) for v in s])
+        else:
+            sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "..", "lib"))
+            from tools.sim.analog_gyro_sim import AnalogGyroSim
+
+            sim = AnalogGyroSim(vref_mv=3300, divider=2.0, noise_mv=0.5, t_noise_mv=0.3, seed=a.seed)
+            q = 3300.0 * 2.0 / 65535
+            w.writerow(["temp_c", "vt_mv", "rate_dps", "out_mv"])
+            for t in temps:
+                sim.temp_c = t
+                for r in (0.0, 200.0, -200.0):
+                    sim.rate_dps = r
+                    for _ in range(a.samples):
+                        w.writerow([t, round(sim.temp.read_u16() * q, 2), r, round(sim.rate.read_u16() * q, 2)])
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(_main())
