@@ -57,6 +57,8 @@ def main(argv=None):
         sp.add_argument("csv", help="chamber data CSV with a header row")
         sp.add_argument("--json", required=True, help="write the readable result here")
         sp.add_argument("--record", help="also write the device's coefficient record (JSON list of ints)")
+        sp.add_argument("--store", help="also save the record(s) into this tempcomp.store file")
+        sp.add_argument("--name", help="record name in --store (sixpos adds NAME_cross)")
         sp.add_argument("--temp-tol", type=float, default=1.0,
                         help="rows within this many degC belong to one temperature (default 1)")
 
@@ -84,6 +86,8 @@ def main(argv=None):
     s.set_defaults(run=_sixpos)
 
     args = p.parse_args(argv)
+    if args.store and not args.name:
+        p.error("--store needs --name")
     try:
         res, ints = args.run(args)
     except FitError as e:
@@ -102,6 +106,17 @@ def main(argv=None):
         with open(args.record, "w") as f:
             json.dump(ints, f)
             f.write("\n")
+    if args.store:
+        try:
+            from tempcomp.store import Store
+        except ImportError:
+            print("error: --store needs tempcomp.store, which this checkout does not have yet; "
+                  "use --record and load the JSON list on the board", file=sys.stderr)
+            return 2
+        st = Store(args.store)
+        st.save(args.name, ints)
+        if "cross_record" in res:
+            st.save(args.name + "_cross", res["cross_record"])
     return 0
 
 
