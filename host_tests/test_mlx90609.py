@@ -35,20 +35,6 @@ def random_fields(rnd):
     return v, rng, tc, ee_z, ee_s
 
 
-def an2_quadratic(tc, y, t):
-    """AN2 equations 3-13 as printed (float64)."""
-    TC0, TC1, TC2 = (float(x) for x in tc)
-    Y0, Y1, Y2 = y
-    T0 = TC1 - TC0  # (11)
-    T1 = TC2 - TC1  # (12)
-    T2 = TC0 - TC2  # (13)
-    D = T0 * T1 * T2
-    A = -(Y0 * T1 + Y1 * T2 + Y2 * T0) / D  # (5)/(8)
-    B = (Y0 * T1 * (TC2 + TC1) + Y1 * T2 * (TC0 + TC2) + Y2 * T0 * (TC1 + TC0)) / D  # (6)/(9)
-    C = -(Y0 * T1 * TC1 * TC2 + Y1 * T2 * TC2 * TC0 + Y2 * T0 * TC0 * TC1) / D  # (7)/(10)
-    return A * t * t + B * t + C  # (3)/(4)
-
-
 # ---------------------------------------------------------------- decoding
 
 
@@ -223,9 +209,22 @@ def _sweep(table, output, out_scale, t_step):
         comp.update(t)
         got = np.array([comp.apply(int(r)) for r in raws], dtype=float)
         te = min(max(t, lo), hi)  # documented: held at the edge of t_in beyond it
-        ref = out_scale * (raws - an2_quadratic(table.tc, z, te)) / an2_quadratic(table.tc, s, te)
+        ref = out_scale * (raws - ms.an2_quadratic(table.tc, z, te)) / ms.an2_quadratic(table.tc, s, te)
         worst = max(worst, float(np.abs(got - ref).max()))
     return worst
+
+
+def test_an2_reference_is_the_interpolating_quadratic_and_overflows_32_bits():
+    tc = (1843, 2497, 3109)
+    y = (2478.4, 2500.1, 2531.7)
+    for t, want in zip(tc, y):
+        assert ms.an2_quadratic(tc, y, t) == pytest.approx(want, abs=1e-9)
+    # why the module does not evaluate the note's closed forms in integers: one product of
+    # equation (10) alone is ~2**43, far beyond MicroPython's 2**30 small ints, and the
+    # denominator T0*T1*T2 is within a factor 2 of that limit
+    T0, T1, T2 = tc[1] - tc[0], tc[2] - tc[1], tc[0] - tc[2]
+    assert abs(y[0] * T1 * tc[1] * tc[2]) > 2**43
+    assert abs(T0 * T1 * T2) > 2**28
 
 
 CORE_EXCESS = 1 / 16  # fixedpoint: intermediate truncations add < 2**(1-S) <= 1/16 output LSB
@@ -234,7 +233,8 @@ CORE_EXCESS = 1 / 16  # fixedpoint: intermediate truncations add < 2**(1-S) <= 1
 @pytest.mark.parametrize(
     "version,fs,output,out_scale",
     [(1, 75, "digital", 100), (2, 150, "digital", 1000), (255, 300, "digital", 100),
-     (3, 300, "digital", 750), (2, 75, "analog", 1000), (1, 300, "analog", 100)],
+     (3, 300, "digital", 750), (2, 75, "analog", 1000), (1, 300, "analog", 100),
+     (2, 75, "digital", 100), (3, 150, "digital", 100), (255, 150, "analog", 100)],
 )
 def test_compensation_matches_an2_equations_3_to_13(version, fs, output, out_scale):
     rnd = random.Random(version * 1000 + fs)

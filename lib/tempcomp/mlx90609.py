@@ -23,8 +23,9 @@ A part with VERSION 0 (early 2006 lots) has no table: the driver still reads raw
 compensated reads raise ``ValueError`` saying so.
 
 Bounds: AN2's closed forms (equations 5-10) multiply four millivolt-sized values, e.g.
-SF0*T1*TC1*TC2 ~ 2600 * 1250 * 3100 * 3100 ~ 3.1e13 ~ 2**45, and even the denominator
-T0*T1*T2 ~ 650 * 600 * 1250 ~ 2**29 fills a 32-bit MicroPython small int (2**30). We never
+ZRO0*T1*TC1*TC2 ~ 2500 * 600 * 2500 * 3100 ~ 1.2e13 ~ 2**43.4 (2**44 with TC near 4 V), and
+even the denominator T0*T1*T2 ~ 650 * 600 * 1250 ~ 2**28.9 nearly fills a 32-bit MicroPython
+small int (2**30): an integer evaluation would need 46-bit arithmetic. We never
 form them: ``fixedpoint.quadratic_through`` builds the same quadratic from divided differences
 (no product of more than two values, about t_ref = TC1 so no cancellation either), at set-up
 in float; the per-sample path is the core's, every intermediate below 2**30 (see
@@ -366,6 +367,13 @@ class MLX90609:
             raise ValueError(str(self._table_error) if self._table_error else "MLX90609: no table")
         return self._comp
 
+    def _table(self):
+        t = self.table
+        if t is None:
+            self._need_table()
+            raise ValueError("MLX90609: no table")
+        return t
+
     def rate(self):
         """Compensated rate in 1/out_scale deg/s (int); zero allocation."""
         comp = self._comp
@@ -383,9 +391,8 @@ class MLX90609:
 
     def zro_at(self, tempout_mv):
         """ZRO(TEMPOUT) in LSB including the re-zero shift (float, set-up use)."""
-        self._need_table()
-        c = self._zro_q
-        u = tempout_mv - self.table.tc[1]
+        u = tempout_mv - self._table().tc[1]
+        c = self._zro_q or (0.0, 0.0, 0.0)
         return c[0] + (c[1] + c[2] * u) * u + self.zro_shift
 
     def rezero(self, samples=64):
@@ -418,10 +425,10 @@ class MLX90609:
     # --- persistence (tempcomp.store takes a name and a sequence of int32) ---
     def calibration_ints(self):
         """(format, table ints..., re-zero in 1/256 LSB) for Store.save()."""
-        self._need_table()
+        table = self._table()
         q = self.zro_shift * _SHIFT_Q
         q = int(q + 0.5) if q >= 0 else -int(-q + 0.5)
-        return (_CAL_FORMAT,) + self.table.to_ints() + (q,)
+        return (_CAL_FORMAT,) + table.to_ints() + (q,)
 
     def apply_calibration_ints(self, ints):
         """Re-apply what calibration_ints() returned; ValueError (old state kept) if unusable."""

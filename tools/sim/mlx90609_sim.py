@@ -123,6 +123,24 @@ def ee_from_sf_rel(sf_rel):
     return e
 
 
+def an2_quadratic(tc, y, t):
+    """AN2 equations 3-13 exactly as printed, in float (the reference for the tests).
+
+    tc: (TC0, TC1, TC2); y: (Y0, Y1, Y2) the ZRO or SF triplet values; t: TEMPOUT (a number
+    or a numpy array). Returns A*t**2 + B*t + C.
+    """
+    TC0, TC1, TC2 = float(tc[0]), float(tc[1]), float(tc[2])
+    Y0, Y1, Y2 = y
+    T0 = TC1 - TC0  # (11)
+    T1 = TC2 - TC1  # (12)
+    T2 = TC0 - TC2  # (13)
+    D = T0 * T1 * T2
+    A = -(Y0 * T1 + Y1 * T2 + Y2 * T0) / D  # (5), (8)
+    B = (Y0 * T1 * (TC2 + TC1) + Y1 * T2 * (TC0 + TC2) + Y2 * T0 * (TC1 + TC0)) / D  # (6), (9)
+    C = -(Y0 * T1 * TC1 * TC2 + Y1 * T2 * TC2 * TC0 + Y2 * T0 * TC0 * TC1) / D  # (7), (10)
+    return A * t * t + B * t + C  # (3), (4)
+
+
 def _lagrange(xs, ys, x):
     x0, x1, x2 = xs
     y0, y1, y2 = ys
