@@ -15,7 +15,7 @@ Usage (MicroPython; on CircuitPython pass ``busio.SPI`` and ``digitalio.DigitalI
     spi = SPI(0, baudrate=1000000, polarity=1, phase=1, sck=Pin(18), mosi=Pin(19), miso=Pin(16))
     gyro = MLX90609(spi, Pin(17, Pin.OUT, value=1))
     gyro.rate_dps()        # degrees per second, float (REPL convenience)
-    gyro.rate()            # 1/out_scale degrees per second, int, zero allocation
+    gyro.rate()            # milli-degrees per second (1/out_scale), int, zero allocation
     gyro.rezero()          # at rest: removes the supply-voltage ZRO shift (AN2 section 4 note)
 
 A part with VERSION 0 (early 2006 lots) has no table: the driver still reads raw codes
@@ -233,7 +233,7 @@ def _quadratics(table, output):
     return off, sc
 
 
-def compensator(table, output="digital", out_scale=100, margin_mv=_MARGIN_MV):
+def compensator(table, output="digital", out_scale=1000, margin_mv=_MARGIN_MV):
     """A fixedpoint.Compensator giving out_scale * (OUT - ZRO(t)) / SF(t), t = TEMPOUT in mV.
 
     OUT is the ADC code (0..2047) for "digital" or millivolts (0..5000) for "analog". Between
@@ -260,10 +260,10 @@ class MLX90609:
     """MLX90609 on an SPI bus (mode 3, <= 1 MHz) with chip select cs.
 
     Reads the EEPROM table at construction. ``rate()`` returns compensated rate in
-    1/out_scale deg/s (default 0.01 deg/s) and reads TEMPOUT every ``temp_every`` samples.
+    1/out_scale deg/s (default milli-deg/s) and reads TEMPOUT every ``temp_every`` samples.
     """
 
-    def __init__(self, spi, cs, out_scale=100, baudrate=1000000, retries=_RETRIES):
+    def __init__(self, spi, cs, out_scale=1000, baudrate=1000000, retries=_RETRIES):
         self._dev = SPIDevice(spi, cs, baudrate, 1, 1)
         self._out = bytearray(3)
         self._in = bytearray(3)
