@@ -408,6 +408,23 @@ def test_calibration_ints_round_trip_and_bad_records():
         assert other.rate() == want  # old calibration kept
 
 
+def test_save_and_reapply_through_the_store(tmp_path):
+    store_mod = pytest.importorskip("tempcomp.store")  # lib/tempcomp/store.py (branch store)
+    sim = ms.MLX90609Sim(version=2, full_scale_dps=150, supply_shift_mv=15.0)
+    gyro, _, _ = blinka_gyro(sim)
+    sim.set_state(0.0, 35.0)
+    gyro.rezero()
+    path = str(tmp_path / "tempcomp.cal")
+    gyro.save(store_mod.Store(path))
+    sim.set_state(-25.0, 75.0)
+    other, _, _ = blinka_gyro(sim)
+    assert abs(other.rate() - gyro.rate()) > 100  # without the re-zero: 15 mV = 1.1 deg/s off
+    other.load(store_mod.Store(path))
+    assert abs(other.rate() - gyro.rate()) <= 1
+    with pytest.raises(KeyError):
+        other.load(store_mod.Store(path), "nothing")
+
+
 # ---------------------------------------------------------------- MicroPython VM
 
 VM_SCRIPT = r"""

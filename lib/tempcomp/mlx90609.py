@@ -17,6 +17,8 @@ Usage (MicroPython; on CircuitPython pass ``busio.SPI`` and ``digitalio.DigitalI
     gyro.rate_dps()        # degrees per second, float (REPL convenience)
     gyro.rate()            # milli-degrees per second (1/out_scale), int, zero allocation
     gyro.rezero()          # at rest: removes the supply-voltage ZRO shift (AN2 section 4 note)
+    from tempcomp.store import Store
+    gyro.save(Store("/tempcomp.cal"))   # table + re-zero; gyro.load(store) re-applies them
 
 A part with VERSION 0 (early 2006 lots) has no table: the driver still reads raw codes
 (``rate_code()``, ``tempout_mv()``) for the three-point calibration tools, and the
@@ -429,6 +431,14 @@ class MLX90609:
         q = self.zro_shift * _SHIFT_Q
         q = int(q + 0.5) if q >= 0 else -int(-q + 0.5)
         return (_CAL_FORMAT,) + table.to_ints() + (q,)
+
+    def save(self, store, name="mlx90609"):
+        """Save table and re-zero through a tempcomp.store.Store (store.save(name, ints))."""
+        store.save(name, self.calibration_ints())
+
+    def load(self, store, name="mlx90609"):
+        """Re-apply what save() stored (KeyError if never saved; ValueError keeps the old state)."""
+        self.apply_calibration_ints(store.load(name))
 
     def apply_calibration_ints(self, ints):
         """Re-apply what calibration_ints() returned; ValueError (old state kept) if unusable."""
