@@ -93,6 +93,8 @@ class MLX90609Error(OSError):
 
 def _voted(cells, first, n, shift):
     """n-bit value from 2-of-3 voted copies (bits shift..shift+2 of n cells, LSB first)."""
+    # accumulators start at 0: AN2's C leaves range/ver/TCnum uninitialised and only works
+    # because every bit happens to be shifted through
     value = 0
     disagree = 0
     for k in range(n):
