@@ -29,7 +29,7 @@ vt_lo == vt_hi marks a single-point calibration.
 """
 
 from tempcomp import record
-from tempcomp.fixedpoint import CLAMP, Compensator, _shift_basis, quadratic_through
+from tempcomp.fixedpoint import CLAMP, Compensator, shift_basis, quadratic_through
 
 _FULL = 65535  # read_u16 / AnalogIn.value full scale
 
@@ -140,8 +140,8 @@ class AnalogGyro:
             raw_range = (-_FULL, 0)
         # about the nearest integer code: the core takes an integer t_ref
         t_ref = int(round(ref / q))
-        off = _shift_basis(off, ref / q, t_ref)
-        sc = _shift_basis(sc, ref / q, t_ref)
+        off = shift_basis(off, ref / q, t_ref)
+        sc = shift_basis(sc, ref / q, t_ref)
         comp = Compensator([off], [sc], t_cal, out_scale=self.out_per_dps, raw_range=raw_range,
                            policy=self.policy, t_ref=t_ref)
         self.comp = comp

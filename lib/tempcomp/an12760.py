@@ -27,7 +27,7 @@ Coefficient record (``tempcomp.record`` kind KIND_AN12760), values in order:
 """
 
 from tempcomp import record
-from tempcomp.fixedpoint import CLAMP, Compensator, _shift_basis
+from tempcomp.fixedpoint import CLAMP, Compensator, shift_basis
 
 _PER_AXIS = 8
 
@@ -119,8 +119,8 @@ class AN12760:
                 s.append(tcs[i] * p)
             s = _poly_mul([counts_per_g * (1.0 + sen)], s)  # counts per g at dT
             # re-expanded about the nearest integer code: the core takes an integer t_ref
-            offs.append(_trim(_shift_basis(o, code_room, ref)))
-            scs.append(_trim(_shift_basis(s, code_room, ref)))
+            offs.append(_trim(shift_basis(o, code_room, ref)))
+            scs.append(_trim(shift_basis(s, code_room, ref)))
         t_cal = _code_span(lo_c, hi_c, self.t_offset, t_scale)
         t_in = None
         if t_in_c is not None:
