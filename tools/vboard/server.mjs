@@ -230,7 +230,7 @@ let backlogTimer = null;
 
 function feedInput(data) {
   for (const b of data) {
-    if (b === 3 && backlog.length === 0 && injectInterrupt()) continue;
+    if (b === 3 && injectInterrupt()) continue;
     backlog.push(b);
   }
   flushBacklog();
