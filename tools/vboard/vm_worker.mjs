@@ -254,7 +254,8 @@ function stdoutWrite(stream, buffer, offset, length) {
 const FLASH = "/flash";
 
 function hostPathOf(p) {
-  const n = path.posix.normalize(p);
+  // VfsPosix hands relative paths to libc once it has chdir'ed into /flash.
+  const n = path.posix.resolve(FS.cwd(), p);
   if (n === FLASH) return flashDir;
   if (!n.startsWith(FLASH + "/")) return null;
   return path.join(flashDir, ...n.slice(FLASH.length + 1).split("/"));
