@@ -36,6 +36,7 @@ class VirtualBoard:
         self.proc = None
         self.lines = []
         self.port = None
+        self.pty = None
 
     def start(self):
         cmd = [NODE, str(SERVER), "--port", str(self.port_arg), "--flash", str(self.flash),
@@ -52,6 +53,10 @@ class VirtualBoard:
                 self.lines.append(line)
                 if "listening on socket://" in line:
                     self.port = int(line.rsplit(":", 1)[1])
+                    if "--pty" not in self.extra:
+                        ready.set()
+                if line.startswith("virtual board: pty "):
+                    self.pty = line.split()[3]
                     ready.set()
             ready.set()
 
@@ -426,3 +431,38 @@ def test_port_in_use_is_a_clear_error(board, tmp_path):
     assert r.returncode == 3
     assert f"port {board.port}" in r.stderr and "already in use" in r.stderr
     assert "BOARD_TCP=" in r.stderr
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="pty paths are Linux-specific")
+def test_pty_serves_the_same_repl(tmp_path):
+    b = VirtualBoard(tmp_path / "flash", extra=["--pty"]).start()
+    try:
+        assert b.pty and b.pty.startswith("/dev/")
+        r = subprocess.run([sys.executable, "-m", "mpremote", "connect", b.pty,
+                            "exec", "shared = 42\nprint('over the pty', shared)"],
+                           capture_output=True, text=True, timeout=30)
+        assert "over the pty 42" in r.stdout, r.stdout + r.stderr + b.log()
+        # The TCP port is the same board: it sees the RAM the pty session left.
+        assert b.mpremote("resume", "eval", "shared").stdout.strip() == "42"
+    finally:
+        b.stop()
+
+
+def test_detach_then_stop(tmp_path):
+    pidfile = tmp_path / "bg.pid"
+    base = [NODE, str(SERVER), "--pidfile", str(pidfile)]
+    r = subprocess.run(base + ["--detach", "--port", "0", "--flash", str(tmp_path / "flash")],
+                       capture_output=True, text=True, timeout=START_TIMEOUT + 5)
+    assert r.returncode == 0, r.stdout + r.stderr
+    port = int(r.stdout.split("socket://127.0.0.1:")[1].split()[0])
+    pid = int(pidfile.read_text())
+    try:
+        b = VirtualBoard(tmp_path / "flash")
+        b.port = port
+        assert b.mpremote("eval", "1 + 1").stdout.strip() == "2"
+    finally:
+        r = subprocess.run(base + ["--stop"], capture_output=True, text=True, timeout=10)
+    assert r.returncode == 0 and "stopped" in r.stdout
+    assert not pidfile.exists()
+    with pytest.raises(ProcessLookupError):
+        os.kill(pid, 0)

@@ -32,6 +32,7 @@ function usage(code) {
   --models DIR    extra directory of device-model .py files (repeatable)
   --devices FILE  board wiring module copied in as vboard_devices.py
   --heap BYTES    initial MicroPython heap (default 262144)
+  --detach        start in the background (log: the pid file's name with .log), return once listening
   --stop          stop the board whose pid is in --pidfile, then exit`);
   process.exit(code);
 }
@@ -48,6 +49,7 @@ function parseArgs(argv) {
     devices: env.VBOARD_DEVICES || path.join(HERE, "vm", "vboard_devices.py"),
     heap: 262144,
     stop: false,
+    detach: false,
     timeScale: Number(env.VBOARD_TIME_SCALE || 1),
   };
   for (let i = 0; i < argv.length; i++) {
@@ -64,6 +66,7 @@ function parseArgs(argv) {
     else if (a === "--devices") o.devices = path.resolve(val());
     else if (a === "--heap") o.heap = Number(val());
     else if (a === "--stop") o.stop = true;
+    else if (a === "--detach") o.detach = true;
     else if (a === "-h" || a === "--help") usage(0);
     else {
       console.error(`unknown argument: ${a}`);
@@ -109,6 +112,38 @@ function stopRunning() {
 }
 
 if (opts.stop) process.exit(stopRunning());
+
+// Background start for scripts (make demo): the same command without
+// --detach, detached, its output in a log; return when it is listening.
+async function detach() {
+  const logPath = opts.pidfile.replace(/\.pid$/, "") + ".log";
+  fs.mkdirSync(path.dirname(logPath), { recursive: true });
+  const log = fs.openSync(logPath, "w");
+  const args = process.argv.slice(2).filter((a) => a !== "--detach");
+  const child = spawn(process.execPath, [fileURLToPath(import.meta.url), ...args], {
+    detached: true,
+    stdio: ["ignore", log, log],
+  });
+  child.unref();
+  const deadline = Date.now() + 15000;
+  while (Date.now() < deadline) {
+    const text = fs.readFileSync(logPath, "utf8");
+    if (/listening on socket:/.test(text) && (!opts.pty || /pty \/dev/.test(text))) {
+      process.stdout.write(text);
+      console.log(`  (running in the background, pid ${child.pid}; log: ${logPath})`);
+      return 0;
+    }
+    if (child.exitCode !== null) {
+      process.stderr.write(text);
+      return child.exitCode || 1;
+    }
+    await new Promise((r) => setTimeout(r, 50));
+  }
+  console.error(`virtual board: did not start within 15 s; see ${logPath}`);
+  return 1;
+}
+
+if (opts.detach) process.exit(await detach());
 
 // ------------------------------------------------------------ the VM files
 
