@@ -316,11 +316,15 @@ def test_ctrl_c_interrupts_tight_loop_and_keeps_ram(board):
 
 
 def test_mpremote_interrupts_sleeping_main_loop(board):
-    board.mpremote("exec", "--no-follow", "import time\nm = 7\nwhile True:\n  time.sleep(1)")
+    board.mpremote("exec", "--no-follow", "import time\nm = 7\nwhile True:\n  time.sleep(60)")
     time.sleep(0.3)
     t0 = time.monotonic()
     assert board.mpremote("resume", "eval", "m * 6", timeout=20).stdout.strip() == "42"
+    # Well within the 60 s sleep: Ctrl-C ends a sleep, as on a board.
     assert time.monotonic() - t0 < 5
+    r = board.mpremote("exec", "import time\nt = time.ticks_ms()\ntime.sleep_ms(200)\n"
+                       "print('slept', time.ticks_diff(time.ticks_ms(), t))")
+    assert 195 <= int(r.stdout.split()[-1]) < 400
 
 
 def test_friendly_repl_and_input(board):

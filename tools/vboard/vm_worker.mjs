@@ -154,6 +154,14 @@ function mapSyscallErrors(imports) {
   }
 }
 
+// A clock jump that ends both the ms and the us (ms * 1000) busy-waits: half
+// the 32-bit range or more in both units.
+const SLEEP_BREAK_MS = (() => {
+  for (let j = 2 ** 31; ; j++) {
+    if (j % 2 ** 32 >= 2 ** 31 && (j * 1000) % 2 ** 32 >= 2 ** 31) return j;
+  }
+})();
+
 const origInstantiate = WebAssembly.instantiate;
 WebAssembly.instantiate = async function (source, imports) {
   if (!(source instanceof WebAssembly.Module) && imports?.env?.mp_js_ticks_ms) {
@@ -164,6 +172,10 @@ WebAssembly.instantiate = async function (source, imports) {
     }
     imports.env.mp_js_ticks_ms = () => {
       const t = (Date.now() - powerOnMs) >>> 0;
+      // time.sleep() busy-waits on this clock without checking for Ctrl-C;
+      // while an interrupt is pending, jump the clock so the wait ends and
+      // the VM raises KeyboardInterrupt, as a board's sleep does.
+      if (kbd && pendingInterrupt()) return (t + SLEEP_BREAK_MS) >>> 0;
       if (t === ticksLast) {
         if (++ticksSpins > 200) {
           Atomics.wait(ctl, CTL.SIZE - 1, 0, 1);
