@@ -470,3 +470,15 @@ def test_detach_then_stop(tmp_path):
     assert not pidfile.exists()
     with pytest.raises(ProcessLookupError):
         os.kill(pid, 0)
+
+
+def test_hard_reset_runs_main_py_and_mpremote_stops_it(board, tmp_path):
+    main = tmp_path / "main.py"
+    main.write_text("import time\nloops = 0\nwhile True:\n    loops += 1\n    time.sleep_ms(20)\n")
+    board.mpremote("cp", str(main), ":main.py")
+    board.mpremote("exec", "--no-follow", "import machine\nmachine.reset()")
+    time.sleep(0.5)
+    # main.py has been looping since the reset; mpremote's Ctrl-C stops it
+    # and its globals are still there.
+    r = board.mpremote("resume", "eval", "(loops > 3, __import__('time').ticks_ms() < 5000)")
+    assert r.stdout.strip() == "(True, True)"
