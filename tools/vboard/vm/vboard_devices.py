@@ -1,0 +1,35 @@
+# Wiring of the virtual board: which simulated device sits on which bus/pin,
+# and the temperature the board goes through.  The host copies this file into
+# the VM at every boot (replace it with --devices FILE / VBOARD_DEVICES).
+#
+# Pin and bus numbers must match boards/virtual.py, which is the user-side
+# view of the same PCB.
+#
+# Device models are MicroPython modules found in tools/vboard/vm/ or in the
+# directories given with --models DIR / VBOARD_MODELS; the interfaces they
+# implement are described at the top of vboard.py.  Each model below is
+# optional so that the board still boots while one is being written.
+
+I2C_BUS = 0
+MPU6500_ADDR = 0x68
+SPI_BUS = 0
+MLX90609_CS = 17
+ADC_RATE = 26  # analog gyro rate output
+ADC_TEMP = 27  # analog gyro temperature output
+
+# Warm up from room temperature, hold, cool down: minutes of a real session
+# compressed into a demo (stretch it with VBOARD_TIME_SCALE < 1).
+PROFILE = [(0, 25.0), (20, 25.0), (60, 45.0), (80, 45.0), (120, 25.0)]
+
+
+def setup(board):
+    board.set_profile(PROFILE)
+    # Hook the simulated sensors in here, e.g.
+    #   from sim_mpu6500 import MPU6500
+    #   board.add_i2c(I2C_BUS, MPU6500_ADDR, MPU6500(board))
+    #   from sim_mlx90609 import MLX90609
+    #   board.add_spi(SPI_BUS, MLX90609_CS, MLX90609(board))
+    #   from sim_analog_gyro import AnalogGyro
+    #   gyro = AnalogGyro(board)
+    #   board.add_adc(ADC_RATE, gyro.rate_u16)
+    #   board.add_adc(ADC_TEMP, gyro.temp_u16)

@@ -1,0 +1,128 @@
+# Start-up of the virtual board's VM, run by the host before boot.py.
+# Lives outside the board's flash: the host mounts it only while this runs.
+import sys
+
+
+def _input(prompt=""):
+    # The WebAssembly port's built-in input() reads from a stub that returns
+    # 0 forever, so it never returns; this one reads the serial line via
+    # sys.stdin and echoes as a board's readline does.
+    global _after_cr
+    if prompt:
+        sys.stdout.write(prompt)
+    line = []
+    while True:
+        c = sys.stdin.read(1)
+        if not c:
+            # Woken by Ctrl-C: the pending KeyboardInterrupt is raised on
+            # this loop's back edge.
+            continue
+        if c == "\n" and _after_cr:
+            _after_cr = False
+            continue
+        _after_cr = c == "\r"
+        if c in "\r\n":
+            sys.stdout.write("\r\n")
+            return "".join(line)
+        if c in "\x08\x7f":
+            if line:
+                line.pop()
+                sys.stdout.write("\x08 \x08")
+        elif c == "\x04" and not line:
+            raise EOFError
+        elif c >= " ":
+            line.append(c)
+            sys.stdout.write(c)
+
+
+_after_cr = False
+
+
+def run_file(name):
+    # pyexec_file_if_exists() for boot.py / main.py: run in __main__.
+    import __main__
+
+    with open(name) as f:
+        src = f.read()
+    exec(compile(src, name, "exec"), __main__.__dict__)
+
+
+class FlashVfs:
+    # The board's flash as MicroPython sees it: the host's mirrored directory
+    # (a VfsPosix) with what a LittleFS/FAT board adds: sizes in ilistdir
+    # (mpremote ls shows them) and statvfs of a flash chip, not of the host.
+    BLOCK = 4096
+    BLOCKS = 512  # 2 MiB, a Pico-sized filesystem
+
+    def __init__(self, root):
+        import vfs
+
+        self._fs = vfs.VfsPosix(root)
+
+    def __repr__(self):
+        return "<VfsFlash>"
+
+    def mount(self, readonly, mkfs):
+        pass
+
+    def umount(self):
+        pass
+
+    def ilistdir(self, path):
+        fs = self._fs
+        base = path.rstrip("/") + "/" if path not in ("", ".") else ""
+        for ent in fs.ilistdir(path):
+            name, kind = ent[0], ent[1]
+            size = fs.stat(base + name)[6] if kind == 0x8000 else 0
+            yield (name, kind, 0, size)
+
+    def _used(self, path):
+        n = 0
+        for name, kind, _, size in self.ilistdir(path):
+            if kind == 0x4000:
+                n += self.BLOCK + self._used(path.rstrip("/") + "/" + name)
+            else:
+                n += (size + self.BLOCK - 1) // self.BLOCK * self.BLOCK
+        return n
+
+    def statvfs(self, path):
+        free = max(0, self.BLOCKS - self._used("/") // self.BLOCK)
+        return (self.BLOCK, self.BLOCK, self.BLOCKS, free, free, 0, 0, 0, 0, 255)
+
+    def open(self, path, mode):
+        return self._fs.open(path, mode)
+
+    def stat(self, path):
+        return self._fs.stat(path)
+
+    def mkdir(self, path):
+        return self._fs.mkdir(path)
+
+    def rmdir(self, path):
+        return self._fs.rmdir(path)
+
+    def remove(self, path):
+        return self._fs.remove(path)
+
+    def rename(self, a, b):
+        return self._fs.rename(a, b)
+
+    def chdir(self, path):
+        return self._fs.chdir(path)
+
+    def getcwd(self):
+        return self._fs.getcwd()
+
+
+def start():
+    import builtins
+    import os
+    import vfs
+
+    vfs.umount("/")
+    vfs.mount(FlashVfs("/flash"), "/")
+    os.chdir("/")
+    builtins.input = _input
+    # Board modules are built in on a real board: load them now, while their
+    # directory is mounted, so that `import machine` finds them in sys.modules.
+    import machine  # noqa: F401
