@@ -8,9 +8,11 @@ PY := $(VENV)/bin/python
 NODE_MODULES := tools/node_modules
 PORT ?=
 BOARD ?= virtual
+BOARD_TCP ?= 2323
+VBOARD := node tools/vboard/server.mjs
 PYTEST_ARGS ?=
 
-.PHONY: setup test demo bench mpy typecheck lint deploy clean
+.PHONY: setup test demo bench mpy typecheck lint deploy clean board board-start board-stop
 
 setup: $(VENV)/.stamp $(NODE_MODULES)/.stamp
 
@@ -43,7 +45,18 @@ mpy: setup
 	$(PY) -m tools.build_mpy build/mpy
 
 deploy: setup
-	$(PY) -m tools.deploy --port "$(PORT)" --board "$(BOARD)"
+	BOARD_TCP=$(BOARD_TCP) $(PY) -m tools.deploy --port "$(PORT)" --board "$(BOARD)"
+
+# The virtual board: the MicroPython VM serving its REPL on 127.0.0.1:$(BOARD_TCP), flash kept in
+# build/vboard/flash/. `make board` runs it in the foreground; board-start/board-stop in the background.
+board: setup
+	$(VBOARD) --port $(BOARD_TCP)
+
+board-start: setup
+	$(VBOARD) --port $(BOARD_TCP) --detach
+
+board-stop:
+	$(VBOARD) --stop
 
 clean:
 	rm -rf build $(VENV) $(NODE_MODULES)

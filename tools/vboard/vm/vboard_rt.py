@@ -117,6 +117,7 @@ class FlashVfs:
 def start():
     import builtins
     import os
+
     import vfs
 
     vfs.umount("/")
