@@ -445,6 +445,7 @@ class Store:
         slot = self._nvm is not None
         copies = self._read_copies()
         states = []
+        whys = []
         best = -1
         best_gen = 0
         best_recs = []  # type: list
@@ -454,9 +455,11 @@ class Store:
             buf = copies[i]
             if buf is None:
                 states.append(_MISSING)
+                whys.append("does not exist")
                 continue
             st, why, gen, recs = _parse(buf, slot)
             states.append(st)
+            whys.append(why)
             scratch = not slot and i == 2  # path.new: a torn one is the normal trace of a cut
             if st == _OK and recs is not None:
                 if gen > best_gen:
@@ -465,7 +468,7 @@ class Store:
                 newer = "%s %s" % (labels[i], why)
             elif st != _BLANK and not scratch:
                 problems.append("%s %s" % (labels[i], why))
-        return best, states, best_recs, best_gen, problems, newer
+        return best, (states, whys), best_recs, best_gen, problems, newer
 
     def _state(self, force=False):
         best, states, recs, gen, problems, newer = self._scan()
@@ -643,12 +646,12 @@ class Store:
                 self._recs = None
                 self._index = None
 
-    def _refuse(self, label, state, force):
+    def _refuse(self, states, i, force):
+        state = states[0][i]
         if force or state in (_MISSING, _BLANK, _DAMAGED, _OK):
             return
-        what = "is not a tempcomp store" if state == _FOREIGN else "is in a newer store format"
         raise StoreError("%s %s; refusing to overwrite it (pass force=True to replace it, "
-                         "losing its content)" % (label, what))
+                         "losing its content)" % (self._labels()[i], states[1][i]))
 
     # File backend. Only rename is trusted to be atomic: LittleFS commits a rename in one
     # metadata block; POSIX rename(2) replaces atomically; FAT (and Windows) refuse to rename
@@ -728,8 +731,9 @@ class Store:
 
     def _commit_file(self, image, best, states, force):
         cur, old, new = self._file_names()
-        self._refuse(cur, states[0], force)
-        self._refuse(old, states[1], force)
+        self._refuse(states, 0, force)
+        self._refuse(states, 1, force)
+        states = states[0]
         # 1. make `cur` hold the newest valid copy (normally it already does)
         if best == 1:
             if states[0] != _MISSING:
@@ -754,14 +758,15 @@ class Store:
     # nvm backend: the slot not holding the newest copy is rewritten in one assignment
     # (CircuitPython erases and programs per assignment) and read back.
     def _commit_nvm(self, image, best, states, force):
+        st = states[0]
         if best >= 0:
             target = 1 - best
-        elif states[0] in (_FOREIGN, _NEWER) and states[1] not in (_FOREIGN, _NEWER):
+        elif st[0] in (_FOREIGN, _NEWER) and st[1] not in (_FOREIGN, _NEWER):
             target = 1
         else:
             target = 0
         label = self._labels()[target]
-        self._refuse(label, states[target], force)
+        self._refuse(states, target, force)
         a, n = self._slots[target]
         if len(image) > n:
             raise ValueError("store of %d bytes does not fit the %d-byte nvm slot" % (len(image), n))
