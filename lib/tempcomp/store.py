@@ -355,12 +355,9 @@ def _parse(buf, slot):
         return _FOREIGN, "is not a tempcomp store (starts %r, expected %r)" % (head, MAGIC), 0, None
     if n < _MIN_IMAGE:
         return _DAMAGED, "is truncated: %d bytes, a store has at least %d" % (n, _MIN_IMAGE), 0, None
+    # Every format version keeps magic, version and length at offsets 0, 4, 8 and the CRC32
+    # last, so a newer store is recognised only when whole: a torn one is just damaged.
     _, ver, count, length, gen = struct.unpack_from("<4sHHII", buf, 0)
-    if ver > VERSION:
-        return (_NEWER, "was written in store format version %d; this tempcomp reads version %d "
-                "(update tempcomp)" % (ver, VERSION), 0, None)
-    if ver != VERSION:
-        return _DAMAGED, "has an invalid format version %d" % ver, 0, None
     if slot:
         if not _MIN_IMAGE <= length <= n:
             return _DAMAGED, "has a wrong length: header says %d bytes, slot holds %d" % (length, n), 0, None
@@ -370,6 +367,11 @@ def _parse(buf, slot):
     calc = _crc(memoryview(buf)[0:length - _CRC])
     if stored != calc:
         return _DAMAGED, "fails its CRC32 check (stored 0x%08x, computed 0x%08x)" % (stored, calc), 0, None
+    if ver > VERSION:
+        return (_NEWER, "was written in store format version %d; this tempcomp reads version %d "
+                "(update tempcomp)" % (ver, VERSION), 0, None)
+    if ver != VERSION:
+        return _DAMAGED, "has an invalid format version %d" % ver, 0, None
     if gen == 0:
         return _DAMAGED, "has generation 0", 0, None
     try:
@@ -474,14 +476,21 @@ class Store:
         best, states, recs, gen, problems, newer = self._scan()
         if newer is not None and not force:
             raise StoreError(newer)
-        if best < 0 and problems and not force:
+        torn_only = self._nvm is not None and _FOREIGN not in states[0]
+        if best < 0 and problems and not force and not torn_only:
             raise StoreError("no usable copy of the store: " + "; ".join(problems))
+        # nvm slots are rewritten in place, so a slot of ours that fails its checks beside a
+        # blank one is what a cut during the first save leaves: nothing was stored yet.
+        # Files are different: path and path.old only ever appear whole (by rename), so a
+        # damaged one with no good copy is an error above.
         self.warnings = []
-        if best >= 0:
-            for p in problems:
+        for p in problems:
+            if best >= 0:
                 msg = "%s; using %s (generation %d)" % (p, self._labels()[best], gen)
-                self.warnings.append(msg)
-                _warn(msg)
+            else:
+                msg = "%s; no calibration stored" % p
+            self.warnings.append(msg)
+            _warn(msg)
         return best, states, recs, gen
 
     def _set_cache(self, recs, gen):
