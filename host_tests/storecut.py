@@ -8,6 +8,9 @@ under test can swallow it); whatever the files hold at that moment is what the n
 import builtins
 import errno
 import os
+import pathlib
+import shutil
+import tempfile
 
 
 class PowerCut(BaseException):
@@ -142,3 +145,16 @@ class FakeNvm:
             self.b[a : a + len(data)] = b"\xff" * len(data)
         self.b[a : a + min(n, len(data))] = data[:n]
         raise PowerCut("torn nvm write at byte %d (%s)" % (n, tail))
+
+
+def ram_dir(tmp_path):
+    """Body of a tmp_path fixture on a RAM disk when the host has one: these tests rewrite
+    thousands of small files, and ext4 flushes a truncated-and-rewritten file on close."""
+    if not os.path.isdir("/dev/shm") or not os.access("/dev/shm", os.W_OK):
+        yield tmp_path
+        return
+    d = tempfile.mkdtemp(prefix="tempcomp-store-", dir="/dev/shm")
+    try:
+        yield pathlib.Path(d)
+    finally:
+        shutil.rmtree(d, ignore_errors=True)

@@ -3,12 +3,9 @@ then loads the previous or the new calibration, never garbage, never nothing; an
 save works."""
 
 import os
-import pathlib
-import shutil
-import tempfile
 
 import pytest
-from storecut import FakeNvm, Medium, PowerCut
+from storecut import FakeNvm, Medium, PowerCut, ram_dir
 
 from tempcomp import store as st
 
@@ -17,15 +14,8 @@ pytestmark = pytest.mark.filterwarnings("ignore::tempcomp.store.StoreWarning")
 
 @pytest.fixture
 def tmp_path(tmp_path):
-    """Thousands of small directories: on a RAM disk when the host has one (10x faster)."""
-    if not os.path.isdir("/dev/shm") or not os.access("/dev/shm", os.W_OK):
-        yield tmp_path
-        return
-    d = tempfile.mkdtemp(prefix="tempcomp-store-", dir="/dev/shm")
-    try:
-        yield pathlib.Path(d)
-    finally:
-        shutil.rmtree(d, ignore_errors=True)
+    yield from ram_dir(tmp_path)
+
 
 OLDER = tuple(range(-600, -588))
 OLD = (123456, -7, 0, 2**31 - 1, -(2**31), 1, 2, 3, 4, 5, 6, 7)
