@@ -472,13 +472,15 @@ class Store:
                 problems.append("%s %s" % (labels[i], why))
         return best, (states, whys), best_recs, best_gen, problems, newer
 
-    def _state(self, force=False):
+    def _state(self, force=False, writing=False):
         best, states, recs, gen, problems, newer = self._scan()
         if newer is not None and not force:
             raise StoreError(newer)
         torn_only = self._nvm is not None and _FOREIGN not in states[0]
         if best < 0 and problems and not force and not torn_only:
-            raise StoreError("no usable copy of the store: " + "; ".join(problems))
+            raise StoreError("no usable copy of the store: " + "; ".join(problems) + (
+                "; refusing to overwrite it (pass force=True to start a new store, losing "
+                "what is there)" if writing else ""))
         # nvm slots are rewritten in place, so a slot of ours that fails its checks beside a
         # blank one is what a cut during the first save leaves: nothing was stored yet.
         # Files are different: path and path.old only ever appear whole (by rename), so a
@@ -626,7 +628,7 @@ class Store:
     def _write(self, rec, drop, force):
         ok = False
         try:
-            best, states, recs, gen = self._state(force)
+            best, states, recs, gen = self._state(force, True)
             if gen >= _UINT32_MAX:
                 raise StoreError("generation counter exhausted")
             recs = list(recs)
