@@ -108,8 +108,10 @@ _INT32_MAX = 2147483647
 _UINT32_MAX = 4294967295
 _UNIX_2000 = 946684800  # 2000-01-01 in UTC seconds since 1970
 _RTC_SET_YEAR = const(2024)  # an RTC reading before this year is taken as "clock not set"
-_ENOENT = const(2)
-_EROFS = const(30)
+try:
+    from errno import EROFS as _EROFS
+except ImportError:
+    _EROFS = const(30)
 
 # slot states
 _OK = const(0)
@@ -135,7 +137,13 @@ class ReadOnlyStoreError(OSError):
     """The filesystem refused a write (on CircuitPython: CIRCUITPY is read-only to code)."""
 
 
-class StoreWarning(Warning):
+try:
+    _WarningBase = Warning
+except NameError:  # MicroPython has no Warning class; warnings are printed there
+    _WarningBase = Exception
+
+
+class StoreWarning(_WarningBase):
     """One copy of the store is damaged and another copy was used."""
 
 
@@ -427,8 +435,9 @@ class Store:
     def _read_file(self, path):
         try:
             f = open(path, "rb")
-        except OSError as e:
-            if _errno(e) == _ENOENT:
+        except OSError:
+            # errno numbers differ between ports (ENOENT is 44 under Emscripten): ask stat
+            if not self._exists(path):
                 return None
             raise
         try:
