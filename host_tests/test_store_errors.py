@@ -103,9 +103,11 @@ def test_record_for_another_part_or_kind(saved):
 
 @pytest.mark.parametrize("name, values, kw, problem", [
     ("", (1,), {}, "name '' is 0 bytes"),
-    ("x" * 17, (1,), {}, "is 17 bytes; it must be 1..16"),
+    ("x" * 33, (1,), {}, "is 33 bytes; it must be 1..32"),
+    ("x" * 1000, (1,), {}, "is 1000 bytes"),
     ("gyr\u00f3", (1,), {}, "must be printable ASCII"),
-    ("a b", (1,), {}, "must be printable ASCII"),
+    ("\u00b5", (1,), {}, "must be printable ASCII"),
+    ("nul\0", (1,), {}, "must be printable ASCII"),
     ("tab\t", (1,), {}, "must be printable ASCII"),
     (b"gyro", (1,), {}, "name must be a str"),
     ("g", (2**31,), {}, r"values\[0\] = 2147483648 is outside int32"),
@@ -170,6 +172,14 @@ def test_two_store_objects_see_each_others_saves(saved):
     assert b.get("other", 0) == 5  # lookups use what was loaded: allocation-free, no I/O
     b.refresh()
     assert b.get("other", 0) == 6
+
+
+def test_names_values_accepted(saved):
+    s = st.Store(saved)
+    s.save("mpu6050 accel offsets: x/y/z", iter([1, 2, 3]))  # 28 chars, spaces, an iterable
+    s.save("e", ())
+    s2 = st.Store(saved)
+    assert s2.load("mpu6050 accel offsets: x/y/z") == (1, 2, 3) and s2.load("e") == ()
 
 
 def test_delete(saved):

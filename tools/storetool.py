@@ -36,7 +36,7 @@ class FormatError(ValueError):
     pass
 
 
-def _ascii(b, what, allow_space):
+def _ascii(b, what, allow_space=True):
     lo = 0x20 if allow_space else 0x21
     if any(not lo <= c <= 0x7E for c in b):
         raise FormatError("%s %r is not printable ASCII" % (what, b))
@@ -64,10 +64,10 @@ def decode_image(data, slot=False):
         (elen, kind, t_unit, nl, pl, sl, r1, m, r2, t_lo, t_hi, counter, when) = ENTRY.unpack_from(data, off)
         text_len = nl + pl + sl + m
         want = 28 + (text_len + 3) // 4 * 4 + 4 * m
-        if r1 or r2 or elen != want or off + elen > length - 4 or not 1 <= nl <= 16:
+        if r1 or r2 or elen != want or off + elen > length - 4 or not 1 <= nl <= 32:
             raise FormatError("entry %d at offset %d is malformed" % (k, off))
         p = off + 28
-        name = _ascii(data[p : p + nl], "name", False)
+        name = _ascii(data[p : p + nl], "name", True)
         part = _ascii(data[p + nl : p + nl + pl], "part", True)
         serial = _ascii(data[p + nl + pl : p + nl + pl + sl], "serial", True)
         frac = list(struct.unpack_from("<%db" % m, data, p + nl + pl + sl))
@@ -118,9 +118,9 @@ def encode_image(doc):
         for v in values:
             if not -(2**31) <= v < 2**31:
                 raise FormatError("record %r: value %d outside int32" % (r["name"], v))
-        if not 1 <= len(name) <= 16 or len(part) > 16 or len(serial) > 32:
+        if not 1 <= len(name) <= 32 or len(part) > 16 or len(serial) > 32:
             raise FormatError("record %r: name/part/serial too long" % (r["name"],))
-        _ascii(name, "name", False)
+        _ascii(name, "name", True)
         m = len(values)
         text = name + part + serial + struct.pack("<%db" % m, *frac)
         text += b"\0" * (-len(text) % 4)

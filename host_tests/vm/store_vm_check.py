@@ -113,7 +113,7 @@ def main():
     except ValueError as e:
         ok("other_part", "MLX90609" in str(e))
     try:
-        s.save("bad name", (1,))
+        s.save("bad\tname", (1,))
         ok("bad_name", False)
     except ValueError:
         ok("bad_name", True)

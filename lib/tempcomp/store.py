@@ -51,7 +51,7 @@ On CircuitPython the CIRCUITPY drive is read-only to code while USB may write it
 raises ``ReadOnlyStoreError`` (an OSError) whose message gives the one-line boot.py fix.
 
 Errors: ``KeyError`` for a name never saved; ``ValueError`` for bad arguments (name not
-printable ASCII or longer than 16, a value outside int32, wrong array length, a record for
+printable ASCII or longer than 32, a value outside int32, wrong array length, a record for
 another part or kind); ``StoreError`` (a ValueError) for a store whose content cannot be used
 (empty, not a store, newer format version, bad length or CRC with no good copy left). A save
 never overwrites a file or nvm slot it does not recognise as its own unless ``force=True``.
@@ -89,10 +89,10 @@ T_MV = const(3)
 
 MAGIC = b"TCAL"
 VERSION = const(1)
-MAX_NAME = const(16)
+MAX_NAME = const(32)
 MAX_PART = const(16)
 MAX_SERIAL = const(32)
-MAX_VALUES = const(1024)
+MAX_VALUES = const(4096)
 FRAC_MIN = const(-31)
 FRAC_MAX = const(31)
 
@@ -189,6 +189,10 @@ def _check_text(what, s, hi, lo, first):
 
 
 def _check_int32(what, v):
+    if not isinstance(v, int) and not isinstance(v, float):
+        index = getattr(v, "__index__", None)  # e.g. numpy integers on the host
+        if index is not None:
+            v = index()
     if not isinstance(v, int):
         raise ValueError("%s = %r is not an int" % (what, v))
     if not _INT32_MIN <= v <= _INT32_MAX:
@@ -314,7 +318,7 @@ def _decode_entries(buf, count, end, gen):
         if counter > gen:
             raise ValueError("entry %d: counter %d is after the store generation %d" % (k, counter, gen))
         p = off + _ENTRY
-        name = _text(buf, p, nl, 0x21)
+        name = _text(buf, p, nl, 0x20)
         part = _text(buf, p + nl, pl, 0x20)
         serial = _text(buf, p + nl + pl, sl, 0x20)
         if name in seen:
@@ -589,10 +593,14 @@ class Store:
         when a span is given); when: UTC seconds since 1970, default the RTC (0 if not set).
         force=True overwrites a copy that is not a store of this version (its data is lost).
         """
-        _check_text("name", name, MAX_NAME, 1, 0x21)
+        _check_text("name", name, MAX_NAME, 1, 0x20)
         _check_text("part", part, MAX_PART, 0, 0x20)
         _check_text("serial", serial, MAX_SERIAL, 0, 0x20)
-        m = len(values)
+        try:
+            m = len(values)
+        except TypeError:  # any iterable of ints will do
+            values = tuple(values)
+            m = len(values)
         if m > MAX_VALUES:
             raise ValueError("%d values; at most %d" % (m, MAX_VALUES))
         vals = array("i", [0] * m)
