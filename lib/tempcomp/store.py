@@ -109,9 +109,11 @@ _UINT32_MAX = 4294967295
 _UNIX_2000 = 946684800  # 2000-01-01 in UTC seconds since 1970
 _RTC_SET_YEAR = const(2024)  # an RTC reading before this year is taken as "clock not set"
 try:
-    from errno import EROFS as _EROFS
+    import errno
+
+    _EROFS = getattr(errno, "EROFS", 30)
 except ImportError:
-    _EROFS = const(30)
+    _EROFS = 30
 
 # slot states
 _OK = const(0)
@@ -137,13 +139,16 @@ class ReadOnlyStoreError(OSError):
     """The filesystem refused a write (on CircuitPython: CIRCUITPY is read-only to code)."""
 
 
+# MicroPython has no Warning class (warnings are printed there): the base is looked up
 try:
-    _WarningBase = Warning
-except NameError:  # MicroPython has no Warning class; warnings are printed there
-    _WarningBase = Exception
+    import builtins
+
+    _WARNING = getattr(builtins, "Warning", Exception)
+except ImportError:
+    _WARNING = Exception
 
 
-class StoreWarning(_WarningBase):
+class StoreWarning(_WARNING):  # pyright: ignore[reportGeneralTypeIssues]
     """One copy of the store is damaged and another copy was used."""
 
 
