@@ -1,0 +1,868 @@
+"""Calibration coefficients kept in flash: crash-safe, CRC-checked, several sensors per store.
+
+Minimal interface (stable; what every sensor module may rely on)::
+
+    from tempcomp.store import Store
+    st = Store("/tempcomp.cal")              # a file: LittleFS/FAT on a board, any file on CPython
+    st.save("gyro0", (12, -340, 7))          # ints within int32; durable when it returns
+    st.load("gyro0")                         # -> (12, -340, 7); KeyError if never saved
+
+Rich interface (one record per sensor; same store, same file)::
+
+    from tempcomp import store
+    st.save_record("gyro0", values, part="MPU6050", serial="B4:E6:2D", kind=store.KIND_MPU_POLY,
+                   frac=14, t_span=(1800, 3100), t_unit=store.T_RAW)
+    rec = st.record("gyro0", part="MPU6050", kind=store.KIND_MPU_POLY)  # checks part and kind
+    rec.values        # array('i') of the stored ints (allocated once, at load)
+    rec.frac          # array('b'): value i means values[i] / 2**frac[i]
+    rec.real(i)       # that as a float (set-up time only: floats allocate)
+    rec.part, rec.serial, rec.kind, rec.t_lo, rec.t_hi, rec.t_unit, rec.counter, rec.time
+    st.get_into("gyro0", out)   # copy into a caller's array('i'): allocates nothing
+    st.get("gyro0", 2)          # one value: allocates nothing (values within +-2**30)
+    st.names(); st.delete("gyro0"); st.export_module("/calib_const.py")
+
+``fixed(x, frac)`` turns a float into the stored int (round(x * 2**frac), int32-checked).
+``values`` keep whatever layout the sensor module documents; ``kind`` says which layout:
+
+==================== = ==================================================================
+KIND_RAW             0 plain ints from ``save()``
+KIND_MLX_REZERO      1 MLX90609 re-zero (null offset vs temperature)
+KIND_MPU_POLY        2 MPU-6050/6500 offset registers and offset(T) polynomials
+KIND_ADI_3POINT      3 ADI three-point (cold/room/hot) calibration
+KIND_AN12760         4 NXP AN12760 per-axis offset and sensitivity vs temperature
+KIND_ELLIPSOID       5 ellipsoid fit: offsets and 3x3 matrix
+==================== = ==================================================================
+
+``t_unit`` says what ``t_lo``/``t_hi`` (the calibrated temperature span) count: ``T_NONE`` (no
+span), ``T_RAW`` (the sensor's own temperature reading, the ``t`` the Compensator takes),
+``T_CENTI_C`` (0.01 degC) or ``T_MV`` (millivolts). ``counter`` is the store generation that
+wrote the record; ``time`` is UTC seconds since 1970 from the RTC, 0 when the board's clock was
+not set (year before 2024), so the counter is the reliable order.
+
+Backends:
+
+* ``Store(path)``: a file. Writes go to ``path + ".new"``, are read back and checked, then
+  renamed over ``path``; the previous generation is kept as ``path + ".old"``. Reading picks
+  the newest of the three whose CRC holds. See docs/store.md for why this is power-cut safe.
+* ``Store(nvm=microcontroller.nvm, offset=0, size=None)``: CircuitPython's non-volatile byte
+  array, split in two slots written alternately.
+
+On CircuitPython the CIRCUITPY drive is read-only to code while USB may write it: a save then
+raises ``ReadOnlyStoreError`` (an OSError) whose message gives the one-line boot.py fix.
+
+Errors: ``KeyError`` for a name never saved; ``ValueError`` for bad arguments (name not
+printable ASCII or longer than 32, a value outside int32, wrong array length, a record for
+another part or kind); ``StoreError`` (a ValueError) for a store whose content cannot be used
+(empty, not a store, newer format version, bad length or CRC with no good copy left). A save
+never overwrites a file or nvm slot it does not recognise as its own unless ``force=True``.
+Warnings (one damaged copy, the other used) are printed and kept in ``Store.warnings``.
+"""
+
+import os
+import struct
+from array import array
+
+try:
+    from binascii import crc32 as _crc32
+except ImportError:  # a port built without binascii.crc32: same polynomial, bitwise
+    _crc32 = None
+
+try:
+    from micropython import const
+except ImportError:
+
+    def const(x):
+        return x
+
+
+KIND_RAW = const(0)
+KIND_MLX_REZERO = const(1)
+KIND_MPU_POLY = const(2)
+KIND_ADI_3POINT = const(3)
+KIND_AN12760 = const(4)
+KIND_ELLIPSOID = const(5)
+
+T_NONE = const(0)
+T_RAW = const(1)
+T_CENTI_C = const(2)
+T_MV = const(3)
+
+MAGIC = b"TCAL"
+VERSION = const(1)
+MAX_NAME = const(32)
+MAX_PART = const(16)
+MAX_SERIAL = const(32)
+MAX_VALUES = const(4096)
+FRAC_MIN = const(-31)
+FRAC_MAX = const(31)
+
+# Layout (docs/store.md has the table): header "<4sHHII" magic, version, count, length,
+# generation; entries; CRC32 of everything before it in the last 4 bytes.
+_HDR = const(16)
+_ENTRY = const(28)  # fixed part of an entry, "<HBBBBBBHHiiII"
+_CRC = const(4)
+_MIN_IMAGE = const(20)
+_MAX_IMAGE = const(65536)
+_INT32_MIN = -2147483648  # not const(): beyond the 32-bit small-int range
+_INT32_MAX = 2147483647
+_UINT32_MAX = 4294967295
+_UNIX_2000 = 946684800  # 2000-01-01 in UTC seconds since 1970
+_RTC_SET_YEAR = const(2024)  # an RTC reading before this year is taken as "clock not set"
+try:
+    import errno
+
+    _EROFS = getattr(errno, "EROFS", 30)
+except ImportError:
+    _EROFS = 30
+
+# slot states
+_OK = const(0)
+_MISSING = const(1)
+_BLANK = const(2)  # erased nvm (0xFF or 0x00): free to write
+_DAMAGED = const(3)  # our magic, but torn or corrupted: free to overwrite, with a warning
+_FOREIGN = const(4)  # not a store (or empty): never overwritten without force=True
+_NEWER = const(5)  # a store in a newer format: never read, never overwritten without force
+
+_READ_ONLY_HELP = (
+    "; on CircuitPython the CIRCUITPY drive is read-only to code while USB can write it: "
+    'add `import storage; storage.remount("/", readonly=False)` to boot.py (then the USB host '
+    "can no longer write CIRCUITPY until that line is removed; use the REPL or safe mode to undo "
+    "it), or use Store(nvm=microcontroller.nvm)"
+)
+
+
+class StoreError(ValueError):
+    """The stored data cannot be used (empty, not a store, newer version, bad length/CRC)."""
+
+
+class ReadOnlyStoreError(OSError):
+    """The filesystem refused a write (on CircuitPython: CIRCUITPY is read-only to code)."""
+
+
+# MicroPython has no Warning class (warnings are printed there): the base is looked up
+try:
+    import builtins
+
+    _WARNING = getattr(builtins, "Warning", Exception)
+except ImportError:
+    _WARNING = Exception
+
+
+class StoreWarning(_WARNING):  # pyright: ignore[reportGeneralTypeIssues]
+    """One copy of the store is damaged and another copy was used."""
+
+
+def _warn(msg):
+    try:
+        import warnings  # pyright: ignore[reportMissingImports]  (CPython only)
+
+        warnings.warn(msg, StoreWarning, stacklevel=4)
+    except ImportError:
+        print("tempcomp.store warning:", msg)
+
+
+def _crc_bitwise(data):
+    c = 0xFFFFFFFF
+    for b in data:
+        c ^= b
+        for _ in range(8):
+            c = (c >> 1) ^ 0xEDB88320 if c & 1 else c >> 1
+    return c ^ 0xFFFFFFFF
+
+
+def _crc(data):
+    if _crc32 is None:
+        return _crc_bitwise(data)
+    return _crc32(data) & 0xFFFFFFFF
+
+
+def _errno(e):
+    return e.args[0] if e.args else None
+
+
+def _check_text(what, s, hi, lo, first):
+    # printable ASCII only: MicroPython's str.encode/decode do not validate "ascii"
+    if not isinstance(s, str):
+        raise ValueError("%s must be a str, got %r" % (what, s))
+    b = s.encode()
+    if not lo <= len(b) <= hi:
+        raise ValueError("%s %r is %d bytes; it must be %d..%d ASCII characters" % (what, s, len(b), lo, hi))
+    for i in range(len(b)):
+        if not first <= b[i] <= 0x7E:
+            raise ValueError("%s %r must be printable ASCII (byte 0x%02x at %d)" % (what, s, b[i], i))
+    return b
+
+
+def _check_int32(what, v):
+    if not isinstance(v, int) and not isinstance(v, float):
+        index = getattr(v, "__index__", None)  # e.g. numpy integers on the host
+        if index is not None:
+            v = index()
+    if not isinstance(v, int):
+        raise ValueError("%s = %r is not an int" % (what, v))
+    if not _INT32_MIN <= v <= _INT32_MAX:
+        raise ValueError("%s = %d is outside int32 (-2147483648..2147483647)" % (what, v))
+    return v
+
+
+def _pow2(f):
+    return float(1 << f) if f >= 0 else 1.0 / (1 << -f)
+
+
+def fixed(x, frac):
+    """round(x * 2**frac) as an int, checked to fit int32 (ValueError otherwise)."""
+    if not FRAC_MIN <= frac <= FRAC_MAX:
+        raise ValueError("frac %r outside %d..%d" % (frac, FRAC_MIN, FRAC_MAX))
+    return _check_int32("fixed(%r, %d)" % (x, frac), round(x * _pow2(frac)))
+
+
+def _now():
+    # UTC seconds since 1970 when the board's clock looks set, else 0 (see module docstring)
+    try:
+        import time
+
+        t = int(time.time())
+        conv = getattr(time, "gmtime", None) or time.localtime
+        if conv(t)[0] < _RTC_SET_YEAR:
+            return 0
+        if conv(0)[0] == 2000:  # MicroPython ports with the 2000 epoch
+            t += _UNIX_2000
+        return t if 0 <= t <= _UINT32_MAX else 0
+    except Exception:
+        return 0
+
+
+class Record:
+    """One sensor's calibration as loaded: ``values`` array('i'), ``frac`` array('b'), metadata."""
+
+    def __init__(self, name, values, frac, part="", serial="", kind=KIND_RAW,
+                 t_lo=0, t_hi=0, t_unit=T_NONE, counter=0, time=0):
+        self.name = name
+        self.values = values
+        self.frac = frac
+        self.part = part
+        self.serial = serial
+        self.kind = kind
+        self.t_lo = t_lo
+        self.t_hi = t_hi
+        self.t_unit = t_unit
+        self.counter = counter
+        self.time = time
+
+    def real(self, i):
+        """Value i as a float: values[i] / 2**frac[i] (allocates: set-up time only)."""
+        return self.values[i] * _pow2(-self.frac[i])
+
+    def __repr__(self):
+        return "Record(%r, part=%r, serial=%r, kind=%d, values=%r, frac=%r, t=%d..%d unit %d, counter=%d, time=%d)" % (
+            self.name, self.part, self.serial, self.kind, tuple(self.values), tuple(self.frac),
+            self.t_lo, self.t_hi, self.t_unit, self.counter, self.time)
+
+
+def _pad4(n):
+    return (n + 3) & ~3
+
+
+def _entry_size(nb, pb, sb, m):
+    return _ENTRY + _pad4(nb + pb + sb + m) + 4 * m
+
+
+def _encode(gen, recs):
+    parts = []
+    size = _HDR + _CRC
+    for r in recs:
+        nb, pb, sb = r.name.encode(), r.part.encode(), r.serial.encode()
+        m = len(r.values)
+        parts.append((r, nb, pb, sb, m))
+        size += _entry_size(len(nb), len(pb), len(sb), m)
+    if size > _MAX_IMAGE:
+        raise ValueError("store would be %d bytes; at most %d" % (size, _MAX_IMAGE))
+    buf = bytearray(size)
+    struct.pack_into("<4sHHII", buf, 0, MAGIC, VERSION, len(recs), size, gen)
+    off = _HDR
+    for r, nb, pb, sb, m in parts:
+        elen = _entry_size(len(nb), len(pb), len(sb), m)
+        struct.pack_into("<HBBBBBBHHiiII", buf, off, elen, r.kind, r.t_unit, len(nb), len(pb),
+                         len(sb), 0, m, 0, r.t_lo, r.t_hi, r.counter, r.time)
+        p = off + _ENTRY
+        for b in (nb, pb, sb):
+            buf[p:p + len(b)] = b
+            p += len(b)
+        for i in range(m):
+            buf[p + i] = r.frac[i] & 0xFF
+        p = off + elen - 4 * m
+        for i in range(m):
+            struct.pack_into("<i", buf, p + 4 * i, r.values[i])
+        off += elen
+    struct.pack_into("<I", buf, size - _CRC, _crc(memoryview(buf)[0:size - _CRC]))
+    return buf
+
+
+def _text(buf, p, n, first):
+    for i in range(p, p + n):
+        if not first <= buf[i] <= 0x7E:
+            raise ValueError("byte 0x%02x at offset %d is not printable ASCII" % (buf[i], i))
+    return bytes(buf[p:p + n]).decode()
+
+
+def _decode_entries(buf, count, end, gen):
+    recs = []
+    seen = {}
+    off = _HDR
+    for k in range(count):
+        if off + _ENTRY > end:
+            raise ValueError("entry %d at offset %d runs past the end (%d)" % (k, off, end))
+        (elen, kind, t_unit, nl, pl, sl, res1, m, res2, t_lo, t_hi, counter,
+         tm) = struct.unpack_from("<HBBBBBBHHiiII", buf, off)
+        if res1 or res2:
+            raise ValueError("entry %d: reserved bytes are not zero" % k)
+        if not 1 <= nl <= MAX_NAME or pl > MAX_PART or sl > MAX_SERIAL or m > MAX_VALUES:
+            raise ValueError("entry %d: field lengths %d/%d/%d/%d out of range" % (k, nl, pl, sl, m))
+        if elen != _entry_size(nl, pl, sl, m) or off + elen > end:
+            raise ValueError("entry %d: length %d does not match its fields or the store" % (k, elen))
+        if counter > gen:
+            raise ValueError("entry %d: counter %d is after the store generation %d" % (k, counter, gen))
+        p = off + _ENTRY
+        name = _text(buf, p, nl, 0x20)
+        part = _text(buf, p + nl, pl, 0x20)
+        serial = _text(buf, p + nl + pl, sl, 0x20)
+        if name in seen:
+            raise ValueError("entry %d: name %r appears twice" % (k, name))
+        seen[name] = True
+        p += nl + pl + sl
+        frac = array("b", [0] * m)
+        for i in range(m):
+            f = buf[p + i]
+            f = f - 256 if f & 0x80 else f
+            if not FRAC_MIN <= f <= FRAC_MAX:
+                raise ValueError("entry %d: frac[%d] = %d out of range" % (k, i, f))
+            frac[i] = f
+        for i in range(p + m, off + elen - 4 * m):
+            if buf[i]:
+                raise ValueError("entry %d: padding is not zero" % k)
+        values = array("i", [0] * m)
+        p = off + elen - 4 * m
+        for i in range(m):
+            values[i] = struct.unpack_from("<i", buf, p + 4 * i)[0]
+        recs.append(Record(name, values, frac, part, serial, kind, t_lo, t_hi, t_unit, counter, tm))
+        off += elen
+    if off != end:
+        raise ValueError("%d bytes after the last entry" % (end - off))
+    return recs
+
+
+def _parse(buf, slot):
+    """Classify one copy: (state, problem, generation, records). slot: an nvm slot, not a file."""
+    n = len(buf)
+    if n == 0:
+        return _FOREIGN, "is empty (0 bytes)", 0, None
+    head = bytes(buf[0:4])
+    if head != MAGIC:
+        if slot:
+            erased = True
+            torn = True
+            for i in range(min(4, n)):
+                b = head[i]
+                erased = erased and b in (0, 0xFF)
+                torn = torn and (b in (0, 0xFF) or b == MAGIC[i])
+            if erased:
+                return _BLANK, "is blank", 0, None
+            if torn:
+                return _DAMAGED, "holds a torn write (magic %r)" % (head,), 0, None
+        return _FOREIGN, "is not a tempcomp store (starts %r, expected %r)" % (head, MAGIC), 0, None
+    if n < _MIN_IMAGE:
+        return _DAMAGED, "is truncated: %d bytes, a store has at least %d" % (n, _MIN_IMAGE), 0, None
+    # Every format version keeps magic, version and length at offsets 0, 4, 8 and the CRC32
+    # last, so a newer store is recognised only when whole: a torn one is just damaged.
+    _, ver, count, length, gen = struct.unpack_from("<4sHHII", buf, 0)
+    if slot:
+        if not _MIN_IMAGE <= length <= n:
+            return _DAMAGED, "has a wrong length: header says %d bytes, slot holds %d" % (length, n), 0, None
+    elif length != n:
+        return _DAMAGED, "has a wrong length: header says %d bytes, file has %d" % (length, n), 0, None
+    stored = struct.unpack_from("<I", buf, length - _CRC)[0]
+    calc = _crc(memoryview(buf)[0:length - _CRC])
+    if stored != calc:
+        return _DAMAGED, "fails its CRC32 check (stored 0x%08x, computed 0x%08x)" % (stored, calc), 0, None
+    if ver > VERSION:
+        return (_NEWER, "was written in store format version %d; this tempcomp reads version %d "
+                "(update tempcomp)" % (ver, VERSION), 0, None)
+    if ver != VERSION:
+        return _DAMAGED, "has an invalid format version %d" % ver, 0, None
+    if gen == 0:
+        return _DAMAGED, "has generation 0", 0, None
+    try:
+        recs = _decode_entries(buf, count, length - _CRC, gen)
+    except ValueError as e:
+        return _DAMAGED, "is malformed: %s" % (e,), 0, None
+    return _OK, "", gen, recs
+
+
+def _find(recs, name):
+    for i in range(len(recs)):
+        if recs[i].name == name:
+            return i
+    return -1
+
+
+class Store:
+    """A crash-safe calibration store on a file (``path``) or a CircuitPython nvm byte array."""
+
+    def __init__(self, path=None, nvm=None, offset=0, size=None):
+        if (path is None) == (nvm is None):
+            raise ValueError("Store needs either a path or nvm=, not both or neither")
+        self.path = path
+        self._nvm = nvm
+        if nvm is not None:
+            total = len(nvm) - offset if size is None else size
+            if offset < 0 or total < 2 * _MIN_IMAGE or offset + total > len(nvm):
+                raise ValueError("nvm region %d+%d does not fit nvm of %d bytes (needs two slots)"
+                                 % (offset, total, len(nvm)))
+            half = total // 2
+            self._slots = ((offset, half), (offset + half, half))
+        self.generation = 0
+        self.warnings = []
+        self._recs = None
+        self._index = None
+
+    def __repr__(self):
+        if self._nvm is None:
+            return "Store(%r)" % (self.path,)
+        return "Store(nvm, slots=%r)" % (self._slots,)
+
+    # -- reading --------------------------------------------------------------------------
+
+    def _file_names(self):
+        p = self.path or ""
+        return [p, p + ".old", p + ".new"]
+
+    def _labels(self):
+        if self._nvm is None:
+            return self._file_names()
+        return ["nvm slot A", "nvm slot B"]
+
+    def _read_file(self, path):
+        try:
+            f = open(path, "rb")
+        except OSError:
+            # errno numbers differ between ports (ENOENT is 44 under Emscripten): ask stat
+            if not self._exists(path):
+                return None
+            raise
+        try:
+            return f.read()
+        finally:
+            f.close()
+
+    def _read_copies(self):
+        if self._nvm is None:
+            return [self._read_file(p) for p in self._labels()]
+        return [bytes(self._nvm[a:a + n]) for a, n in self._slots]
+
+    def _scan(self):
+        """Read every copy; return (best index or -1, states, records, problems)."""
+        labels = self._labels()
+        slot = self._nvm is not None
+        copies = self._read_copies()
+        states = []
+        whys = []
+        best = -1
+        best_gen = 0
+        best_recs = []  # type: list
+        problems = []
+        newer = None
+        for i in range(len(labels)):
+            buf = copies[i]
+            if buf is None:
+                states.append(_MISSING)
+                whys.append("does not exist")
+                continue
+            st, why, gen, recs = _parse(buf, slot)
+            states.append(st)
+            whys.append(why)
+            scratch = not slot and i == 2  # path.new: a torn one is the normal trace of a cut
+            if st == _OK and recs is not None:
+                if gen > best_gen:
+                    best, best_gen, best_recs = i, gen, recs
+            elif st == _NEWER:
+                newer = "%s %s" % (labels[i], why)
+            elif st != _BLANK and not scratch:
+                problems.append("%s %s" % (labels[i], why))
+        return best, (states, whys), best_recs, best_gen, problems, newer
+
+    def _state(self, force=False, writing=False):
+        best, states, recs, gen, problems, newer = self._scan()
+        if newer is not None and not force:
+            raise StoreError(newer)
+        torn_only = self._nvm is not None and _FOREIGN not in states[0]
+        if best < 0 and problems and not force and not torn_only:
+            raise StoreError("no usable copy of the store: " + "; ".join(problems) + (
+                "; refusing to overwrite it (pass force=True to start a new store, losing "
+                "what is there)" if writing else ""))
+        # nvm slots are rewritten in place, so a slot of ours that fails its checks beside a
+        # blank one is what a cut during the first save leaves: nothing was stored yet.
+        # Files are different: path and path.old only ever appear whole (by rename), so a
+        # damaged one with no good copy is an error above.
+        self.warnings = []
+        for p in problems:
+            if best >= 0:
+                msg = "%s; using %s (generation %d)" % (p, self._labels()[best], gen)
+            else:
+                msg = "%s; no calibration stored" % p
+            self.warnings.append(msg)
+            _warn(msg)
+        return best, states, recs, gen
+
+    def _set_cache(self, recs, gen):
+        index = {}
+        for r in recs:
+            index[r.name] = r
+        self._recs = recs
+        self._index = index
+        self.generation = gen
+        return index
+
+    def refresh(self):
+        """Re-read the medium (after another Store object or a host tool changed it)."""
+        self._recs = None
+        self._index = None
+        _, _, recs, gen = self._state()
+        return self._set_cache(recs, gen)
+
+    def _ensure(self):
+        index = self._index
+        if index is None:
+            index = self.refresh()
+        return index
+
+    def load(self, name, part=None):
+        """Return the values saved under name as a tuple (KeyError if never saved).
+
+        Reads the medium on every call. With ``part``, a record made for another part
+        raises ValueError.
+        """
+        self.refresh()
+        return tuple(self.record(name, part).values)
+
+    def record(self, name, part=None, kind=None):
+        """The loaded Record for name; ValueError if it is for another part or kind."""
+        index = self._ensure()
+        if name not in index:
+            raise KeyError("%r was never saved in %r" % (name, self))
+        r = index[name]
+        if part is not None and r.part != part:
+            raise ValueError("record %r is for part %r, not %r" % (name, r.part, part))
+        if kind is not None and r.kind != kind:
+            raise ValueError("record %r holds kind %d, not %d" % (name, r.kind, kind))
+        return r
+
+    def get(self, name, i):
+        """Value i of a loaded record (no allocation for values within +-2**30)."""
+        index = self._index
+        if index is None:
+            index = self._ensure()
+        return index[name].values[i]
+
+    def get_into(self, name, out):
+        """Copy a record's values into out (array('i') of the same length); returns the count."""
+        index = self._index
+        if index is None:
+            index = self._ensure()
+        v = index[name].values
+        n = len(v)
+        if len(out) != n:
+            raise ValueError("record %r has %d values; out has %d" % (name, n, len(out)))
+        i = 0
+        while i < n:  # no slice object, no range object: nothing allocated
+            out[i] = v[i]
+            i += 1
+        return n
+
+    def names(self):
+        """Names of the stored records, in store order."""
+        self._ensure()
+        return [r.name for r in self._recs or ()]
+
+    # -- writing --------------------------------------------------------------------------
+
+    def save(self, name, values):
+        """Store ints (each within int32) under a short ASCII name; durable when it returns."""
+        self.save_record(name, values)
+
+    def save_record(self, name, values, part="", serial="", kind=KIND_RAW, frac=0,
+                    t_span=None, t_unit=None, when=None, force=False):
+        """Store one sensor's record (see the module docstring); replaces one of the same name.
+
+        values: ints within int32; frac: fraction bits, one int for all or one per value
+        (-31..31); t_span: (t_lo, t_hi) calibrated temperature span in t_unit (default T_RAW
+        when a span is given); when: UTC seconds since 1970, default the RTC (0 if not set).
+        force=True overwrites a copy that is not a store of this version (its data is lost).
+        """
+        _check_text("name", name, MAX_NAME, 1, 0x20)
+        _check_text("part", part, MAX_PART, 0, 0x20)
+        _check_text("serial", serial, MAX_SERIAL, 0, 0x20)
+        try:
+            m = len(values)
+        except TypeError:  # any iterable of ints will do
+            values = tuple(values)
+            m = len(values)
+        if m > MAX_VALUES:
+            raise ValueError("%d values; at most %d" % (m, MAX_VALUES))
+        vals = array("i", [0] * m)
+        for i in range(m):
+            vals[i] = _check_int32("values[%d]" % i, values[i])
+        if isinstance(frac, int):
+            frac = [frac] * m
+        if len(frac) != m:
+            raise ValueError("frac has %d entries for %d values (wrong length)" % (len(frac), m))
+        fr = array("b", [0] * m)
+        for i in range(m):
+            f = frac[i]
+            if not isinstance(f, int) or not FRAC_MIN <= f <= FRAC_MAX:
+                raise ValueError("frac[%d] = %r outside %d..%d" % (i, f, FRAC_MIN, FRAC_MAX))
+            fr[i] = f
+        if not isinstance(kind, int) or not 0 <= kind <= 255:
+            raise ValueError("kind %r must be 0..255 (a KIND_ constant)" % (kind,))
+        if t_span is None:
+            t_lo = t_hi = 0
+            t_unit = T_NONE if t_unit is None else t_unit
+        else:
+            if len(t_span) != 2:
+                raise ValueError("t_span must be (t_lo, t_hi), got %r" % (t_span,))
+            t_lo = _check_int32("t_span[0]", t_span[0])
+            t_hi = _check_int32("t_span[1]", t_span[1])
+            if t_lo > t_hi:
+                raise ValueError("t_span %r: t_lo > t_hi" % (t_span,))
+            t_unit = T_RAW if t_unit is None else t_unit
+        if not isinstance(t_unit, int) or not 0 <= t_unit <= 255:
+            raise ValueError("t_unit %r must be 0..255 (a T_ constant)" % (t_unit,))
+        if when is None:
+            when = _now()
+        if not isinstance(when, int) or not 0 <= when <= _UINT32_MAX:
+            raise ValueError("when %r must be UTC seconds since 1970 within uint32" % (when,))
+        rec = Record(name, vals, fr, part, serial, kind, t_lo, t_hi, t_unit, 0, when)
+        self._write(rec, None, force)
+
+    def delete(self, name, force=False):
+        """Remove a record (a crash-safe write like save); KeyError if it is not there."""
+        self._write(None, name, force)
+
+    def _write(self, rec, drop, force):
+        ok = False
+        try:
+            best, states, recs, gen = self._state(force, True)
+            if gen >= _UINT32_MAX:
+                raise StoreError("generation counter exhausted")
+            recs = list(recs)
+            gen += 1
+            if rec is not None:
+                rec.counter = gen
+                i = _find(recs, rec.name)
+                if i < 0:
+                    recs.append(rec)
+                else:
+                    recs[i] = rec
+            else:
+                i = _find(recs, drop)
+                if i < 0:
+                    raise KeyError("%r was never saved in %r" % (drop, self))
+                recs.pop(i)
+            image = _encode(gen, recs)
+            if self._nvm is None:
+                self._commit_file(image, best, states, force)
+            else:
+                self._commit_nvm(image, best, states, force)
+            self._set_cache(recs, gen)
+            ok = True
+        finally:
+            if not ok:  # an error or a power cut in a test: re-read before trusting the cache
+                self._recs = None
+                self._index = None
+
+    def _refuse(self, states, i, force):
+        state = states[0][i]
+        if force or state in (_MISSING, _BLANK, _DAMAGED, _OK):
+            return
+        raise StoreError("%s %s; refusing to overwrite it (pass force=True to replace it, "
+                         "losing its content)" % (self._labels()[i], states[1][i]))
+
+    # File backend. Only rename is trusted to be atomic: LittleFS commits a rename in one
+    # metadata block; POSIX rename(2) replaces atomically; FAT (and Windows) refuse to rename
+    # over an existing file, so there the old target is removed first, and the window between
+    # is covered by the reader taking the newest valid copy of path, path.old, path.new.
+    def _exists(self, p):
+        try:
+            os.stat(p)
+            return True
+        except OSError:
+            return False
+
+    def _wrap(self, e, what):
+        if _errno(e) == _EROFS:
+            raise ReadOnlyStoreError(_EROFS, "cannot %s: read-only filesystem%s" % (what, _READ_ONLY_HELP))
+        raise e
+
+    def _remove(self, p):
+        try:
+            os.remove(p)
+        except OSError as e:
+            self._wrap(e, "remove " + p)
+
+    def _replace(self, src, dst):
+        try:
+            os.rename(src, dst)
+            return
+        except OSError as e:
+            if _errno(e) == _EROFS or not self._exists(dst) or not self._exists(src):
+                self._wrap(e, "rename %s to %s" % (src, dst))
+        # FAT/Windows: rename does not replace. dst is never the newest copy here.
+        self._remove(dst)
+        try:
+            os.rename(src, dst)
+        except OSError as e:
+            self._wrap(e, "rename %s to %s" % (src, dst))
+
+    def _write_verified(self, p, image):
+        try:
+            f = open(p, "wb")
+        except OSError as e:
+            self._wrap(e, "write " + p)
+            raise
+        try:
+            f.write(image)
+            f.flush()
+            fileno = getattr(f, "fileno", None)
+            if fileno is not None and hasattr(os, "fsync"):
+                os.fsync(fileno())  # CPython: data on disk before the rename makes it current
+        finally:
+            f.close()
+        if hasattr(os, "sync"):
+            if not hasattr(os, "fsync"):  # MicroPython: flush the block device cache
+                os.sync()
+        back = self._read_file(p)
+        if back != image:
+            raise OSError(5, "%s did not read back as written (flash fault?); store unchanged" % p)
+
+    def _sync_dir(self):
+        # CPython/POSIX: make the renames themselves durable. MicroPython's VFS commits a
+        # rename before returning, and os.open does not exist there.
+        rdonly = getattr(os, "O_RDONLY", None)
+        if rdonly is None or not hasattr(os, "fsync"):
+            return
+        p = self.path or ""
+        d = p[: p.rfind("/")] if "/" in p else "."
+        try:
+            fd = os.open(d or "/", rdonly)
+        except OSError:
+            return
+        try:
+            os.fsync(fd)
+        except OSError:
+            pass
+        finally:
+            os.close(fd)
+
+    def _commit_file(self, image, best, states, force):
+        cur, old, new = self._file_names()
+        self._refuse(states, 0, force)
+        self._refuse(states, 1, force)
+        states = states[0]
+        # 1. make `cur` hold the newest valid copy (normally it already does)
+        if best == 1:
+            if states[0] != _MISSING:
+                self._remove(cur)
+            self._replace(old, cur)
+        elif best == 2:
+            if states[0] != _MISSING:
+                self._replace(cur, old)
+            self._replace(new, cur)
+        elif best < 0:
+            for i in (0, 1):
+                if states[i] != _MISSING:
+                    self._remove((cur, old)[i])
+        # 2. the new image goes to a scratch name, read back
+        self._write_verified(new, image)
+        # 3. commit: the newest copy becomes .old, the new image becomes current
+        if self._exists(cur):
+            self._replace(cur, old)
+        self._replace(new, cur)
+        self._sync_dir()
+
+    # nvm backend: the slot not holding the newest copy is rewritten in one assignment
+    # (CircuitPython erases and programs per assignment) and read back.
+    def _commit_nvm(self, image, best, states, force):
+        st = states[0]
+        if best >= 0:
+            target = 1 - best
+        elif st[0] in (_FOREIGN, _NEWER) and st[1] not in (_FOREIGN, _NEWER):
+            target = 1
+        else:
+            target = 0
+        label = self._labels()[target]
+        self._refuse(states, target, force)
+        a, n = self._slots[target]
+        if len(image) > n:
+            raise ValueError("store of %d bytes does not fit the %d-byte nvm slot" % (len(image), n))
+        nvm = self._nvm
+        if nvm is None:
+            return
+        nvm[a:a + len(image)] = image
+        if bytes(nvm[a:a + len(image)]) != bytes(image):
+            raise OSError(5, "%s did not read back as written; the other slot is unchanged" % label)
+
+    # -- export ---------------------------------------------------------------------------
+
+    def export_module(self, dst):
+        """Write the records as a Python module of const() values (path or stream)."""
+        self._ensure()
+        text = module_text(self._recs or (), self.generation)
+        if isinstance(dst, str):
+            f = open(dst, "w")
+            try:
+                f.write(text)
+            finally:
+                f.close()
+        else:
+            dst.write(text)
+
+
+def _ident(name):
+    s = ""
+    for c in name.upper():
+        s += c if ("A" <= c <= "Z" or "0" <= c <= "9") else "_"
+    if "0" <= s[0] <= "9":
+        s = "R" + s
+    return s
+
+
+def module_text(recs, generation):
+    """Python source of const() values for recs (for freezing calibration into firmware)."""
+    lines = [
+        "# tempcomp calibration, store generation %d. Generated: edit by re-exporting." % generation,
+        "try:",
+        "    from micropython import const",
+        "except ImportError:",
+        "",
+        "    def const(x):",
+        "        return x",
+        "",
+        "",
+        "GENERATION = const(%d)" % generation,
+    ]
+    seen = {}
+    table = []
+    for r in recs:
+        k = _ident(r.name)
+        if k in seen:
+            raise ValueError("names %r and %r give the same identifier %s" % (seen[k], r.name, k))
+        seen[k] = r.name
+        lines.append("%s_VALUES = const(%r)" % (k, tuple(r.values)))
+        lines.append("%s_FRAC = const(%r)" % (k, tuple(r.frac)))
+        lines.append("%s_META = const((%r, %r, %d, %d, %d, %d, %d, %d))" % (
+            k, r.part, r.serial, r.kind, r.t_lo, r.t_hi, r.t_unit, r.counter, r.time))
+        table.append("    %r: (%s_VALUES, %s_FRAC, %s_META)," % (r.name, k, k, k))
+    lines.append("# name: (values, frac, (part, serial, kind, t_lo, t_hi, t_unit, counter, time))")
+    lines.append("RECORDS = {")
+    lines.extend(table)
+    lines.append("}")
+    return "\n".join(lines) + "\n"
