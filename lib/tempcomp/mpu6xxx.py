@@ -435,8 +435,10 @@ class MPU6xxx:
             raise MPUError("only %d packets captured, at least %d needed" % (self._n, MIN_PACKETS))
         return t
 
-    def _analyse(self, gyro_spread_dps, accel_spread_mg, max_tilt_mg):
-        # -> (gravity axis, its expected output at +-2 g); raises on an unusable capture
+    def _analyse(self, cur, gyro_spread_dps, accel_spread_mg, max_tilt_mg):
+        # -> (gravity axis, its expected output at +-2 g); raises on an unusable capture.
+        # Gravity and tilt are judged on what the part reads with its factory trim, so
+        # offsets written earlier (even far off) don't hide the face it lies on.
         n = self._n
         s = self._sum
         axes = ("accel x", "accel y", "accel z", "gyro x", "gyro y", "gyro z")
@@ -459,11 +461,13 @@ class MPU6xxx:
                     "the part moved during capture: %s spread %d %s (limit %d); keep it still"
                     % (axes[j], shown, unit, limit)
                 )
+        fac = self.factory
+        m = [s[j] // n - ((cur[3 + j] >> 1) - (fac[j] >> 1)) * 2 * _ACCEL_STEP for j in range(3)]
         g = 0
         for j in (1, 2):
-            if abs(s[j]) > abs(s[g]):
+            if abs(m[j]) > abs(m[g]):
                 g = j
-        mg = [(s[j] // n) * 1000 // _ACCEL_LSB_G for j in range(3)]
+        mg = [m[j] * 1000 // _ACCEL_LSB_G for j in range(3)]
         if not 850 <= abs(mg[g]) <= 1150:
             raise MPUError(
                 "gravity reads %d mg on accel %s (expected about 1000): not at rest?" % (mg[g], "xyz"[g])
@@ -474,7 +478,7 @@ class MPU6xxx:
                     "not lying on a face: accel x/y/z read %d/%d/%d mg; lay it flat (limit %d mg off-axis)"
                     % (mg[0], mg[1], mg[2], max_tilt_mg)
                 )
-        return g, (_ACCEL_LSB_G if s[g] > 0 else -_ACCEL_LSB_G)
+        return g, (_ACCEL_LSB_G if m[g] > 0 else -_ACCEL_LSB_G)
 
     def calibrate(self, packets=1000, settle_ms=50, gyro_spread_dps=5, accel_spread_mg=150, max_tilt_mg=150):
         """Capture ``packets`` samples at rest (1 kHz), write and verify the offsets.
@@ -485,8 +489,8 @@ class MPU6xxx:
         sensor configuration are then left in place.
         """
         self._capture(packets, settle_ms)
-        g, e = self._analyse(gyro_spread_dps, accel_spread_mg, max_tilt_mg)
         cur = self._read_offsets()
+        g, e = self._analyse(cur, gyro_spread_dps, accel_spread_mg, max_tilt_mg)
         n = self._n
         s = self._sum
         words = [0] * 6
@@ -509,8 +513,8 @@ class MPU6xxx:
         Collect points at several temperatures for ``tempcomp.mpu6xxx_tc.BiasModel``.
         """
         t = self._capture(packets, settle_ms)
-        g, e = self._analyse(gyro_spread_dps, accel_spread_mg, max_tilt_mg)
         cur = self._read_offsets()
+        g, e = self._analyse(cur, gyro_spread_dps, accel_spread_mg, max_tilt_mg)
         n = self._n
         s = self._sum
         gy = tuple(cur[k] - s[3 + k] / (_GYRO_STEP * n) for k in range(3))
