@@ -1,0 +1,1 @@
+"""Host-side tools for tempcomp (run with .venv/bin/python -m tools.<name>)."""
