@@ -1,13 +1,12 @@
 """MPU-6xxx checks that run inside the MicroPython VM (host_tests/test_mpu6xxx_vm.py).
 
-Prints machine-readable lines: ``CAL part face gx gy gz ax ay az r0..r5`` (registers and the
-simulated part's mean output afterwards, in output LSB), ``ALLOC ...`` (allocprobe), and
+Prints machine-readable lines: ``CAL part face gx gy gz ax ay az f0 f1 f2 m0..m5`` (registers,
+the factory trim words and the simulated part's mean output afterwards, in output LSB), ``ALLOC ...`` (allocprobe), and
 ``COMP t raw0..raw5 -> out0..out6`` for comparison with CPython.
 """
 
 from array import array
 
-import allocprobe
 from replay_i2c import ReplayI2C
 
 from tempcomp.mpu6xxx import MAX_PACKETS, MPU6xxx
@@ -25,7 +24,7 @@ def calibrations():
             sim.place(face)
             imu = MPU6xxx(SimI2C({0x68: sim}))
             g, a = imu.calibrate(packets=300)
-            vals = list(g) + list(a) + ["%.3f" % v for v in sim.mean_output()]
+            vals = list(g) + list(a) + list(sim.factory) + ["%.3f" % v for v in sim.mean_output()]
             print("CAL %s %s %s" % (part, face, " ".join([str(v) for v in vals])))
 
 
@@ -39,6 +38,8 @@ def model_points(t0):
 
 
 def allocations():
+    import allocprobe  # VM only (uses micropython.heap_lock)
+
     sim = MPU6xxxSim("MPU-6500", seed=5)
     sim.place("+z")
     imu_sim = MPU6xxx(SimI2C({0x68: sim}))

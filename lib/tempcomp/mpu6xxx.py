@@ -53,7 +53,7 @@ except ImportError:
 
 
 try:
-    from warnings import warn as _warn
+    from warnings import warn as _warn  # pyright: ignore[reportMissingImports]
 except ImportError:
 
     def _warn(msg):

@@ -73,7 +73,7 @@ class BiasModel:
     def __init__(self, points, policy=CLAMP):
         if not points:
             raise ValueError("need at least one bias point")
-        pts = sorted(points, key=lambda p: p[0])
+        pts = sorted(points)  # by temperature reading first
         ts = [int(p[0]) for p in pts]
         for i in range(1, len(ts)):
             if ts[i] == ts[i - 1]:
