@@ -7,9 +7,9 @@ import os
 import re
 import sys
 
+import mpvm
 import pytest
 
-import mpvm
 from tempcomp.mpu6xxx_tc import BiasModel
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))

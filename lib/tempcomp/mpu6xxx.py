@@ -611,8 +611,11 @@ class MPU6xxx:
     def follow(self, model, step_c100=50):
         """Hardware offset(T): re-write the offsets when the temperature moved by step_c100.
 
-        Call it periodically; returns True when it wrote (verified, all-or-nothing).
+        Call it periodically with the part awake (asleep, TEMP_OUT does not update); returns
+        True when it wrote (verified, all-or-nothing).
         """
+        if self._dev.read_u8(_USER_CTRL + 1) & 0x40:
+            raise MPUError("the part is asleep (PWR_MGMT_1.SLEEP): its temperature is stale")
         t = self.temp_raw()
         step = step_c100 * self._row[TEMP_SENS] // 10000
         last = self._follow_t
