@@ -125,8 +125,8 @@ def _binomial(n, k):
     return r
 
 
-def _shift_basis(coeffs, old_ref, new_ref):
-    # coefficients of powers of (t - old_ref) -> powers of (t - new_ref)
+def shift_basis(coeffs, old_ref, new_ref):
+    """Coefficients of powers of (t - old_ref) re-expanded in powers of (t - new_ref) (set-up)."""
     d = new_ref - old_ref
     n = len(coeffs)
     out = [0.0] * n
@@ -204,7 +204,7 @@ class Poly:
         while (1 << h) < half:
             h += 1
         # coefficients of x = (t - mid) / 2**h, so |x| <= 1 over the range
-        b = _shift_basis(coeffs, t_ref, mid)
+        b = shift_basis(coeffs, t_ref, mid)
         n = [b[j] * _pow2(h * j) for j in range(len(b))]
         while len(n) > 1 and n[-1] == 0:
             n.pop()

@@ -1,0 +1,92 @@
+"""Chamber data of simulated accelerometers (numpy, host): truth and raw samples for tests/bench.
+
+Each unit has, per axis a, offset(T) = off0 + tco1 dT + tco2 dT^2 (mg), scale(T) =
+cpg (1 + sen_tol)(1 + tcs1 dT) counts per g, and a fixed cross-axis matrix
+N = S + R (S symmetric off-diagonal cross-axis sensitivity, R a small rotation).
+raw = round(offset*cpg/1000 + diag(scale) (I + N) g + noise), int16.
+"""
+
+import numpy as np
+
+SIX = np.array([[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]], dtype=float)
+
+
+def truth(units, rng, cross=0.01, rot=0.01):
+    """Random per-unit true coefficients (dict of arrays, leading axis = unit)."""
+    U = units
+    S = rng.normal(0, cross, (U, 3, 3))
+    S = np.triu(S, 1)
+    S = S + np.swapaxes(S, 1, 2)
+    w = rng.normal(0, rot, (U, 3))
+    R = np.zeros((U, 3, 3))
+    R[:, 2, 1], R[:, 1, 2] = w[:, 0], -w[:, 0]
+    R[:, 0, 2], R[:, 2, 0] = w[:, 1], -w[:, 1]
+    R[:, 1, 0], R[:, 0, 1] = w[:, 2], -w[:, 2]
+    return {
+        "off0": rng.normal(0, 40, (U, 3)),
+        "tco1": rng.normal(0, 0.5, (U, 3)),
+        "tco2": rng.normal(0, 0.002, (U, 3)),
+        "sen_tol": rng.normal(0, 0.02, (U, 3)),
+        "tcs1": rng.normal(0, 2e-4, (U, 3)),
+        "N": S + R,
+        "rot": w,
+    }
+
+
+def chamber(tr, temps, g_dirs, samples, cpg, rng, noise_counts=8.0, t_room=25.0, dtype=np.int16):
+    """Raw samples (U, T, O, samples, 3) for truth ``tr`` at temps (T,) with orientations (O, 3)."""
+    U = tr["off0"].shape[0]
+    dT = np.asarray(temps, dtype=float) - t_room  # (T,)
+    off = (tr["off0"][:, None, :] + tr["tco1"][:, None, :] * dT[None, :, None]
+           + tr["tco2"][:, None, :] * dT[None, :, None] ** 2) * cpg / 1000.0  # (U,T,3) counts
+    sc = cpg * (1 + tr["sen_tol"][:, None, :]) * (1 + tr["tcs1"][:, None, :] * dT[None, :, None])  # (U,T,3)
+    M = sc[:, :, :, None] * (np.eye(3) + tr["N"])[:, None, :, :]  # (U,T,3,3)
+    clean = off[:, :, None, :] + np.einsum("utaj,oj->utoa", M, g_dirs)  # (U,T,O,3)
+    noise = rng.normal(0, noise_counts, (U, len(dT), len(g_dirs), samples, 3))
+    return np.rint(clean[:, :, :, None, :] + noise).astype(dtype)
+
+
+def _main(argv=None):
+    """Write a simulated chamber CSV (for trying the tools without a chamber)."""
+    import argparse
+    import csv
+    import os
+    import sys
+
+    p = argparse.ArgumentParser(prog="python -m tools.fit.simulate", description=_main.__doc__)
+    p.add_argument("kind", choices=["sixpos", "adxrs"])
+    p.add_argument("out", help="CSV file to write")
+    p.add_argument("--seed", type=int, default=1)
+    p.add_argument("--counts-per-g", type=float, default=16384.0)
+    p.add_argument("--samples", type=int, default=20)
+    a = p.parse_args(argv)
+    rng = np.random.default_rng(a.seed)
+    temps = [-40.0, 25.0, 85.0]
+    with open(a.out, "w", newline="") as f:
+        w = csv.writer(f)
+        if a.kind == "sixpos":
+            raw = chamber(truth(1, rng), temps, SIX, a.samples, a.counts_per_g, rng)
+            labels = ["+x", "-x", "+y", "-y", "+z", "-z"]
+            w.writerow(["temp_c", "orient", "ax", "ay", "az"])
+            for k, t in enumerate(temps):
+                for o, lab in enumerate(labels):
+                    for s in raw[0, k, o]:
+                        w.writerow([t, lab] + [int(v) for v in s])
+        else:
+            sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "..", "lib"))
+            from tools.sim.analog_gyro_sim import AnalogGyroSim
+
+            sim = AnalogGyroSim(vref_mv=3300, divider=2.0, noise_mv=0.5, t_noise_mv=0.3, seed=a.seed)
+            q = 3300.0 * 2.0 / 65535
+            w.writerow(["temp_c", "vt_mv", "rate_dps", "out_mv"])
+            for t in temps:
+                sim.temp_c = t
+                for r in (0.0, 200.0, -200.0):
+                    sim.rate_dps = r
+                    for _ in range(a.samples):
+                        w.writerow([t, round(sim.temp.read_u16() * q, 2), r, round(sim.rate.read_u16() * q, 2)])
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(_main())

@@ -1,0 +1,316 @@
+"""Six-position / multi-orientation accelerometer calibration at each temperature, vectorised.
+
+Model at one temperature, for orientation o with known specific force g_o (in g)::
+
+    raw_o = b + M g_o + noise,     M = diag(s) (I + N)
+
+b: offset (counts), s: scale (counts per g), N: cross-axis terms (N_ij, i != j: axis i's
+response to acceleration along j relative to its own). N's symmetric part is the sensor's
+cross-axis sensitivity (non-orthogonality); its antisymmetric part is a small rotation
+(misalignment between the sensor and the fixture). With six or more known orientations this
+is linear least squares with one design shared by every unit (one pseudo-inverse for
+10,000 units). With 9..12 *unknown* orientations (``ellipsoid=True``) |M^-1 (raw - b)| = 1 g
+is fitted as a quadric; M is then the symmetric one, so misalignment is not observable.
+
+Each coefficient's temperature dependence is a polynomial in T - t_room (order <= number of
+temperatures - 1), fitted per unit. The device applies the per-axis part as AN12760 (offset,
+TCO, SENtol, TCS) and the cross-axis part as ``tempcomp.crossaxis``.
+"""
+
+import numpy as np
+
+from tools.fit.common import FitError, check_temperatures, group_temperatures, numeric, read_csv
+
+# +x: the sensor's +x axis points up and reads +1 g
+LABELS = {
+    "+x": (1, 0, 0), "-x": (-1, 0, 0), "+y": (0, 1, 0),
+    "-y": (0, -1, 0), "+z": (0, 0, 1), "-z": (0, 0, -1),
+}
+_OFFDIAG = [(0, 1), (0, 2), (1, 0), (1, 2), (2, 0), (2, 1)]
+
+
+def _check_temps(temps, tol):
+    # per unit: strictly ascending, distinct by more than tol
+    d = np.diff(temps, axis=1)
+    if d.size and (d <= tol).any():
+        u, k = (int(i) for i in np.argwhere(d <= tol)[0])
+        a, b = temps[u, k], temps[u, k + 1]
+        if abs(b - a) <= tol:
+            raise FitError("duplicate temperature: unit %d has %.2f and %.2f degC (temperature %d and %d); "
+                           "each temperature must appear once" % (u, a, b, k, k + 1))
+        raise FitError("temperatures are not sorted: unit %d has %.2f degC after %.2f degC; "
+                       "give them in ascending order" % (u, b, a))
+
+
+def reduce_samples(raw, raw_range=(-32768, 32767)):
+    """Means and standard errors over samples of raw (U, T, O, N, 3); saturation -> FitError."""
+    raw = np.asarray(raw)
+    if raw.ndim != 5 or raw.shape[-1] != 3:
+        raise FitError("raw must have shape (units, temperatures, orientations, samples, 3), got %s" % (raw.shape,))
+    if raw.dtype.kind == "f":
+        bad = ~np.isfinite(raw)
+        if bad.any():
+            u, t, o, n, a = (int(i) for i in np.argwhere(bad)[0])
+            raise FitError("NaN/inf in the data: unit %d, temperature %d, orientation %d, sample %d, axis %s"
+                           % (u, t, o, n, "xyz"[a]))
+    lo, hi = raw_range
+    sat = (raw <= lo) | (raw >= hi)
+    if sat.any():
+        u, t, o, n, a = (int(i) for i in np.argwhere(sat)[0])
+        raise FitError("saturated axis: unit %d, temperature %d, orientation %d, axis %s reads %d, at the "
+                       "range limit %d..%d; use a wider range" % (u, t, o, "xyz"[a], raw[u, t, o, n, a], lo, hi))
+    n = raw.shape[3]
+    s1 = raw.sum(axis=3, dtype=np.float64)
+    mean = s1 / n
+    se = None
+    if n > 1:
+        sq = np.square(raw, dtype=np.float64).sum(axis=3)
+        var = np.clip(sq - s1 * mean, 0.0, None) / (n - 1)
+        se = np.sqrt(var / n)
+    return mean, se
+
+
+def fit_means(mean, temps, counts_per_g, g_dirs=None, se=None, order=1, t_room=25.0, temp_tol=1.0,
+              ellipsoid=False):
+    """Fit every unit; mean (U, T, O, 3) counts, temps (T,) or (U, T) degC, g_dirs (O, 3) g.
+
+    Returns a dict of numpy arrays (see keys) and the warnings list.
+    """
+    mean = np.asarray(mean, dtype=np.float64)
+    if mean.ndim != 4 or mean.shape[-1] != 3:
+        raise FitError("means must have shape (units, temperatures, orientations, 3)")
+    U, T, NO, _ = mean.shape
+    if not np.isfinite(mean).all():
+        u, t, o, a = (int(i) for i in np.argwhere(~np.isfinite(mean))[0])
+        raise FitError("NaN/inf in the data: unit %d, temperature %d, orientation %d, axis %s" % (u, t, o, "xyz"[a]))
+    temps = np.asarray(temps, dtype=np.float64)
+    if temps.ndim == 1:
+        temps = np.broadcast_to(temps, (U, T))
+    if temps.shape != (U, T) or not np.isfinite(temps).all():
+        raise FitError("temperatures must be finite, shape (T,) or (units, T)")
+    _check_temps(temps, temp_tol)
+    warnings = check_temperatures(temps.mean(axis=0), order, "temperature law")
+    cpg = float(counts_per_g)
+    x = mean / cpg  # in g, keeps every matrix near unit size
+    se_x = se / cpg if se is not None else None
+    if ellipsoid:
+        b, M, res = _ellipsoid(x)
+        dof = NO - 9
+        misalign = None
+        se_b = se_M = None
+    else:
+        if g_dirs is None:
+            raise FitError("known orientations (g_dirs) are needed unless ellipsoid=True")
+        G = np.asarray(g_dirs, dtype=np.float64)
+        if G.shape != (NO, 3):
+            raise FitError("g_dirs must have one 3-vector per orientation (%d), got %s" % (NO, G.shape))
+        for a in range(3):
+            if G[:, a].max() < 0.5 or G[:, a].min() > -0.5:
+                raise FitError("missing orientation: no orientation points axis %s %s (each axis needs one "
+                               "near +1 g and one near -1 g)" % ("xyz"[a], "up" if G[:, a].max() < 0.5 else "down"))
+        D = np.hstack([np.ones((NO, 1)), G])
+        if np.linalg.matrix_rank(D) < 4:
+            raise FitError("missing orientation: the %d orientations do not point every axis both up and "
+                           "down (the design has rank %d of 4); add the missing ones" % (NO, np.linalg.matrix_rank(D)))
+        Pinv = np.linalg.pinv(D)  # (4, O)
+        par = np.einsum("ko,utoa->utka", Pinv, x)
+        b = par[:, :, 0, :]
+        M = np.swapaxes(par[:, :, 1:, :], 2, 3)  # M[a, j] = par[1 + j, a]
+        res = x - np.einsum("ok,utka->utoa", D, par)
+        dof = NO - 4
+        cov = np.linalg.inv(D.T @ D)
+        # noise of the means: from the samples if given, else from the residuals
+        if se_x is not None:
+            sig = np.sqrt(np.mean(se_x ** 2, axis=2))  # (U, T, 3)
+        elif dof > 0:
+            sig = np.sqrt(np.sum(res ** 2, axis=2) / dof)
+        else:
+            sig = np.full((U, T, 3), np.nan)
+        se_b = sig * np.sqrt(cov[0, 0])
+        se_M = sig[:, :, :, None] * np.sqrt(np.diag(cov)[1:])[None, None, None, :]
+        misalign = None
+    s = np.einsum("utaa->uta", M)
+    N = M / s[:, :, :, None] - np.eye(3)
+    if not ellipsoid:
+        A = 0.5 * (N - np.swapaxes(N, 2, 3))
+        misalign = np.stack([A[:, :, 2, 1], A[:, :, 0, 2], A[:, :, 1, 0]], axis=-1)  # rad about x, y, z
+    rms = np.sqrt(np.mean(res ** 2, axis=2)) * 1000.0  # mg, (U, T, 3)
+    # temperature laws: coefficient k of (T - t_room)^k per unit, per coefficient
+    deg = min(order, T - 1)
+    V = np.power((temps - t_room)[:, :, None], np.arange(deg + 1))  # (U, T, d+1)
+    Vt = np.swapaxes(V, 1, 2)
+    P = np.linalg.solve(Vt @ V, Vt)  # (U, d+1, T)
+    off_mg = b * 1000.0
+    cross = np.stack([N[:, :, i, j] for i, j in _OFFDIAG], axis=-1)  # (U, T, 6)
+    law_off = np.einsum("ukt,uta->uka", P, off_mg)
+    law_s = np.einsum("ukt,uta->uka", P, s)
+    law_cross = np.einsum("ukt,utc->ukc", P, cross)
+    out = {
+        "temps": temps, "offset_mg": off_mg, "scale": s * cpg, "cross": N, "misalign_rad": misalign,
+        "rms_mg": rms, "dof": dof, "law_offset_mg": law_off, "law_scale_rel": law_s, "law_cross": law_cross,
+        "law_degree": deg,
+    }
+    if se_b is not None:
+        out["se_offset_mg"] = se_b * 1000.0
+        out["se_scale"] = np.einsum("utaa->uta", se_M) * cpg
+        se_N = se_M / s[:, :, :, None]  # first order, |N| << 1
+        out["se_cross"] = se_N
+        out["se_law_offset_mg"] = np.sqrt(np.einsum("ukt,uta->uka", P ** 2, (se_b * 1000.0) ** 2))
+        out["se_law_scale_rel"] = np.sqrt(np.einsum("ukt,uta->uka", P ** 2, np.einsum("utaa->uta", se_M) ** 2))
+    # AN12760 form per axis: offset/TCO from the offset law, SENtol/TCS from the scale law
+    out["sen_tol"] = law_s[:, 0, :] - 1.0
+    out["tcs"] = law_s[:, 1:, :] / law_s[:, :1, :]
+    out["tco"] = law_off[:, 1:, :]
+    # cross-axis correction the device applies after per-axis compensation: (I + N(t_room))^-1 - I
+    n_room = np.zeros((U, 3, 3))
+    for c, (i, j) in enumerate(_OFFDIAG):
+        n_room[:, i, j] = law_cross[:, 0, c]
+    out["cross_correction"] = np.linalg.inv(np.eye(3) + n_room) - np.eye(3)
+    return out, warnings
+
+
+def _ellipsoid(x):
+    """Quadric fit per (unit, temperature): x (U, T, O, 3) in g -> b (U,T,3), symmetric M, residuals."""
+    U, T, NO, _ = x.shape
+    if NO < 9:
+        raise FitError("ellipsoid fit needs at least 9 orientations, the data has %d; use known orientations "
+                       "(six-position) or measure more" % NO)
+    X, Y, Z = x[..., 0], x[..., 1], x[..., 2]
+    H = np.stack([X * X, Y * Y, Z * Z, 2 * X * Y, 2 * X * Z, 2 * Y * Z, 2 * X, 2 * Y, 2 * Z], axis=-1)
+    Ht = np.swapaxes(H, 2, 3)
+    HtH = Ht @ H
+    rank = np.linalg.matrix_rank(HtH)
+    if (rank < 9).any():
+        u, t = (int(i) for i in np.argwhere(rank < 9)[0])
+        raise FitError("ellipsoid fit: unit %d temperature %d: the orientations do not cover the sphere "
+                       "(rank %d of 9); add orientations" % (u, t, rank[u, t]))
+    p = np.linalg.solve(HtH, Ht @ np.ones((U, T, NO, 1)))[..., 0]
+    Q = np.empty((U, T, 3, 3))
+    Q[..., 0, 0], Q[..., 1, 1], Q[..., 2, 2] = p[..., 0], p[..., 1], p[..., 2]
+    Q[..., 0, 1] = Q[..., 1, 0] = p[..., 3]
+    Q[..., 0, 2] = Q[..., 2, 0] = p[..., 4]
+    Q[..., 1, 2] = Q[..., 2, 1] = p[..., 5]
+    v = p[..., 6:9]
+    c = -np.linalg.solve(Q, v[..., None])[..., 0]
+    k = 1.0 + np.einsum("uta,utab,utb->ut", c, Q, c)
+    W = Q / k[..., None, None]
+    lam, vec = np.linalg.eigh(W)
+    if (lam <= 0).any():
+        raise FitError("ellipsoid fit: the data is not an ellipsoid (a non-positive axis); check the data")
+    Minv = np.einsum("utab,utb,utcb->utac", vec, np.sqrt(lam), vec)
+    M = np.einsum("utab,utb,utcb->utac", vec, 1.0 / np.sqrt(lam), vec)
+    a = np.einsum("utab,utob->utoa", Minv, x - c[:, :, None, :])
+    norm = np.linalg.norm(a, axis=-1, keepdims=True)
+    res = a - a / norm  # radial misfit, in g
+    return c, M, res
+
+
+def fit_csv(path, counts_per_g, order=1, t_room=25.0, ellipsoid=False, raw_range=(-32768, 32767), temp_tol=1.0):
+    """One unit from a CSV ``temp_c,orient,ax,ay,az`` (optional gx,gy,gz); a result dict for JSON."""
+    cols = read_csv(path, ["temp_c", "orient", "ax", "ay", "az"], optional=("gx", "gy", "gz"))
+    lines = cols["_line"]
+    T = numeric(cols, "temp_c", path)
+    raw = np.stack([numeric(cols, c, path) for c in ("ax", "ay", "az")], axis=1)
+    lo, hi = raw_range
+    sat = (raw <= lo) | (raw >= hi)
+    if sat.any():
+        i, a = (int(v) for v in np.argwhere(sat)[0])
+        raise FitError("saturated axis: %s line %d axis %s reads %d, at the range limit %d..%d; use a wider "
+                       "range or drop that orientation" % (path, lines[i], "xyz"[a], raw[i, a], lo, hi))
+    labels = [s.strip() for s in cols["orient"]]
+    have_g = all(c in cols for c in ("gx", "gy", "gz"))
+    gvec = {}
+    for i, lab in enumerate(labels):
+        if have_g:
+            g = tuple(float(cols[c][i]) for c in ("gx", "gy", "gz"))
+        elif ellipsoid:
+            g = (0.0, 0.0, 0.0)
+        elif lab in LABELS:
+            g = LABELS[lab]
+        else:
+            raise FitError("%s line %d: orientation %r is not one of %s (or give gx,gy,gz columns)"
+                           % (path, lines[i], lab, " ".join(LABELS)))
+        gvec.setdefault(lab, g)
+    centres, idx = group_temperatures(T, lines, temp_tol)
+    if len(centres) < 2:
+        raise FitError("only one temperature (%.2f degC): temperature laws need at least 2" % centres[0])
+    orients = sorted(gvec)
+    NO = len(orients)
+    mean = np.empty((1, len(centres), NO, 3))
+    se = np.zeros((1, len(centres), NO, 3))
+    temps = np.empty(len(centres))
+    for k, c in enumerate(centres):
+        m = idx == k
+        temps[k] = T[m].mean()
+        for j, lab in enumerate(orients):
+            sel = m & np.array([lb == lab for lb in labels])
+            if not sel.any():
+                raise FitError("missing orientation: %.2f degC has no rows for orientation %r, which other "
+                               "temperatures have" % (c, lab))
+            r = raw[sel]
+            mean[0, k, j] = r.mean(axis=0)
+            if len(r) > 1:
+                se[0, k, j] = r.std(axis=0, ddof=1) / np.sqrt(len(r))
+    G = np.array([gvec[lab] for lab in orients], dtype=float)
+    have_se = bool((se > 0).any())
+    out, warnings = fit_means(mean, temps, counts_per_g, None if ellipsoid else G, se if have_se else None,
+                              order=order, t_room=t_room, temp_tol=temp_tol, ellipsoid=ellipsoid)
+    return summarise(out, 0, counts_per_g, t_room, warnings, orients)
+
+
+def summarise(out, u, counts_per_g, t_room, warnings, orients=None):
+    """Readable dict of one unit's results (JSON)."""
+    def f(a):
+        return None if a is None else np.asarray(a).tolist()
+
+    temps = out["temps"][u]
+    per_t = []
+    for k, t in enumerate(temps):
+        d = {
+            "temp_c": float(t),
+            "offset_mg": f(out["offset_mg"][u, k]),
+            "scale_counts_per_g": f(out["scale"][u, k]),
+            "cross_axis": f(out["cross"][u, k]),
+            "residual_rms_mg": f(out["rms_mg"][u, k]),
+        }
+        if out["misalign_rad"] is not None:
+            d["misalignment_mrad"] = f(out["misalign_rad"][u, k] * 1000.0)
+        if "se_offset_mg" in out:
+            d["stderr_offset_mg"] = f(out["se_offset_mg"][u, k])
+            d["stderr_scale_counts_per_g"] = f(out["se_scale"][u, k])
+        per_t.append(d)
+    axes = []
+    for a in range(3):
+        axes.append({
+            "axis": "xyz"[a],
+            "offset_mg": float(out["law_offset_mg"][u, 0, a]),
+            "tco": f(out["tco"][u, :, a]),
+            "sen_tol": float(out["sen_tol"][u, a]),
+            "tcs": f(out["tcs"][u, :, a]),
+        })
+    return {
+        "model": "sixpos" if out["misalign_rad"] is not None else "ellipsoid",
+        "counts_per_g": float(counts_per_g),
+        "t_room_c": float(t_room),
+        "law_degree": int(out["law_degree"]),
+        "orientations": orients,
+        "temperatures": per_t,
+        "axes": axes,
+        "law_cross": {"terms": ["%s<-%s" % ("xyz"[i], "xyz"[j]) for i, j in _OFFDIAG],
+                      "coeffs": f(out["law_cross"][u])},
+        "cross_correction": f(out["cross_correction"][u]),
+        "misalignment_observable": out["misalign_rad"] is not None,
+        "warnings": warnings,
+    }
+
+
+def record_ints(res):
+    """AN12760 record of the three axes; the cross-axis record goes to res['cross_record']."""
+    from tempcomp import record
+
+    t = [d["temp_c"] for d in res["temperatures"]]
+    vals = [res["t_room_c"], t[0], t[-1], 3.0]
+    for ax in res["axes"]:
+        vals += [ax["offset_mg"]] + (ax["tco"] + [0.0] * 3)[:3] + [ax["sen_tol"]] + (ax["tcs"] + [0.0] * 3)[:3]
+    res["cross_record"] = record.pack(record.KIND_CROSS, [v for row in res["cross_correction"] for v in row])
+    return record.pack(record.KIND_AN12760, vals)
