@@ -29,7 +29,7 @@ vt_lo == vt_hi marks a single-point calibration.
 """
 
 from tempcomp import record
-from tempcomp.fixedpoint import CLAMP, Compensator, shift_basis, quadratic_through
+from tempcomp.fixedpoint import CLAMP, Compensator, quadratic_through, shift_basis
 
 _FULL = 65535  # read_u16 / AnalogIn.value full scale
 
