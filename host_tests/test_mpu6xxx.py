@@ -537,3 +537,24 @@ def test_blinka_busio_i2c():
     with pytest.raises(OSError):
         imu.calibrate(packets=300)
     assert imu.offsets() == cal
+
+
+def test_save_and_reapply_through_the_store(tmp_path):
+    store = pytest.importorskip("tempcomp.store")  # the coefficient store, once it is on main
+    path = str(tmp_path / "tempcomp.cal")
+    sim, bus = make("MPU-6500", seed=12, face="-z", **QUIET)
+    imu = MPU6xxx(bus)
+    cal = imu.calibrate(packets=300)
+    imu.save(store.Store(path))
+    t = sim.temp_raw()
+    model = BiasModel([(t - 900, (1.25, -2.5, 3.0), (100.0, 200.0, -300.0)),
+                       (t + 900, (2.0, -2.0, 3.5), (104.0, 196.0, -296.5))])
+    store.Store(path).save("mpu_tc", model.to_ints())
+    sim.power_cycle()  # the registers forget; the file does not
+    st = store.Store(path)
+    imu2 = MPU6xxx(bus)
+    assert imu2.restore(st) == cal
+    assert (sim.gyro_offsets(), sim.accel_offsets()) == cal
+    back = BiasModel.from_ints(st.load("mpu_tc"))
+    for k in range(6):
+        assert back.value(k, t) == pytest.approx(model.value(k, t), abs=1 / 16.0)
