@@ -1,0 +1,68 @@
+"""Register layouts of the InvenSense MPU-6050/6500 family parts tempcomp.mpu6xxx drives.
+
+One row per part; detection is by WHO_AM_I (register 0x75), and a clone that answers another
+id is driven by naming the part whose layout it copies. Sources: sensor-facts.md (InvenSense
+section), RM-MPU-6000A, RM-MPU-9250 sec. 4, the Linux inv_mpu6050 driver's part table (FIFO
+sizes; the ICM-20602 always writes the temperature into its FIFO packets).
+
+Usage::
+
+    from tempcomp.mpu6xxx_parts import by_name, by_who_am_i, NAME
+    row = by_who_am_i(0x70)
+    row[NAME]     # 'MPU-6500'
+"""
+
+try:
+    from micropython import const
+except ImportError:
+
+    def const(x):
+        return x
+
+
+# column indices of a row
+NAME = const(0)
+WHO_AM_I = const(1)
+ACCEL_OFFS = const(2)  # register of the X accel offset high byte
+ACCEL_STRIDE = const(3)  # Y and Z follow at this stride
+FIFO_SIZE = const(4)  # bytes
+PACKET = const(5)  # FIFO bytes per sample with accel + gyro enabled
+GYRO_AT = const(6)  # offset of gyro X inside a packet (accel X is at 0)
+FIFO_EN_BITS = const(7)  # FIFO_EN value that enables accel + all gyro axes
+TEMP_SENS = const(8)  # temperature sensitivity, hundredths of LSB per degC
+TEMP_ZERO = const(9)  # temperature at raw 0, hundredths of degC
+ACCEL_CONFIG2 = const(10)  # 1 if register 0x1D is ACCEL_CONFIG2 (accel DLPF)
+
+# T = raw / 340 + 36.53 (MPU-6050 PS 6.4), raw / 333.87 + 21 (MPU-6500/9250 PS),
+# raw / 326.8 + 25 (ICM-20602/20608, Linux INV_ICM20608_TEMP_SCALE/OFFSET).
+PARTS = (
+    ("MPU-6050", 0x68, 0x06, 2, 1024, 12, 6, 0x78, 34000, 3653, 0),
+    ("MPU-9150", 0x68, 0x06, 2, 1024, 12, 6, 0x78, 34000, 3653, 0),
+    ("MPU-6500", 0x70, 0x77, 3, 512, 12, 6, 0x78, 33387, 2100, 1),
+    ("MPU-9250", 0x71, 0x77, 3, 512, 12, 6, 0x78, 33387, 2100, 1),
+    ("MPU-9255", 0x73, 0x77, 3, 512, 12, 6, 0x78, 33387, 2100, 1),
+    ("ICM-20608", 0xAF, 0x77, 3, 512, 12, 6, 0x78, 32680, 2500, 1),
+    # FIFO_EN bit 4 enables all gyro axes, bit 3 the accel; TEMP_OUT rides along (14 bytes)
+    ("ICM-20602", 0x12, 0x77, 3, 1008, 14, 8, 0x18, 32680, 2500, 1),
+)
+
+
+def by_who_am_i(who):
+    """The first row whose WHO_AM_I is ``who`` (MPU-6050 for 0x68), or None."""
+    for row in PARTS:
+        if row[WHO_AM_I] == who:
+            return row
+    return None
+
+
+def by_name(name):
+    """The row of part ``name`` (case and dashes ignored: "mpu6500" works), or None."""
+    key = name.upper().replace("-", "").replace("_", "")
+    for row in PARTS:
+        if row[NAME].replace("-", "") == key:
+            return row
+    return None
+
+
+def names():
+    return tuple(row[NAME] for row in PARTS)

@@ -1,0 +1,145 @@
+"""Temperature-dependent bias of an MPU-6xxx part over its own temperature sensor.
+
+Capture ``bias_point()`` at rest at two or more temperatures; each gives the raw temperature
+and the offset-register values that would zero the bias there. ``BiasModel`` fits, per
+axis, a polynomial of those register values in the raw temperature (exact through 1..3
+points, least-squares quadratic through more) and evaluates it with the fixed-point core.
+Use it either way:
+
+* hardware: ``imu.follow(model, step_c100=50)`` re-writes the offset registers whenever the
+  temperature moved by 0.5 degC since the last write (no work per sample);
+* software: ``imu.compensate(model)`` then ``imu.read_compensated(out)`` per sample
+  (mg, mdps; zero allocation), keeping the held registers as they are.
+
+Usage::
+
+    from tempcomp.mpu6xxx_tc import BiasModel
+    pts = [imu.bias_point()]          # cold
+    pts.append(imu.bias_point())      # warm ... (one call per temperature)
+    model = BiasModel(pts)
+    store.save("mpu_tc", model.to_ints())
+    model = BiasModel.from_ints(store.load("mpu_tc"))
+"""
+
+from tempcomp.fixedpoint import CLAMP, EXTRAPOLATE, Compensator, quadratic_through
+
+_FRAC = 16  # to_ints keeps register values in 1/16 LSB
+
+
+def _lsq_quadratic(ts, ys, t_ref):
+    # least-squares c0 + c1 u + c2 u**2, u = (t - t_ref) / w, w keeps the normal matrix sane
+    w = float(max(abs(t - t_ref) for t in ts)) or 1.0
+    m = [[0.0] * 4 for _ in range(3)]
+    for t, y in zip(ts, ys):
+        u = (t - t_ref) / w
+        p = (1.0, u, u * u)
+        for i in range(3):
+            for j in range(3):
+                m[i][j] += p[i] * p[j]
+            m[i][3] += p[i] * y
+    for c in range(3):  # Gauss-Jordan with partial pivoting
+        piv = max(range(c, 3), key=lambda r: abs(m[r][c]))
+        m[c], m[piv] = m[piv], m[c]
+        if m[c][c] == 0:
+            raise ValueError("bias points do not determine a quadratic")
+        for r in range(3):
+            if r != c:
+                f = m[r][c] / m[c][c]
+                for j in range(c, 4):
+                    m[r][j] -= f * m[c][j]
+    return [m[0][3] / m[0][0], m[1][3] / m[1][1] / w, m[2][3] / m[2][2] / (w * w)]
+
+
+def _fit(ts, ys, t_ref):
+    n = len(ts)
+    if n == 1:
+        return [float(ys[0])]
+    if n == 2:
+        slope = (ys[1] - ys[0]) / float(ts[1] - ts[0])
+        return [ys[0] + slope * (t_ref - ts[0]), slope]
+    if n == 3:
+        return list(quadratic_through((ts[0], ys[0]), (ts[1], ys[1]), (ts[2], ys[2]), t_ref))
+    return _lsq_quadratic(ts, ys, t_ref)
+
+
+class BiasModel:
+    """Offset-register values vs raw temperature for the six axes (gyro x y z, accel x y z).
+
+    points: (t_raw, (gx, gy, gz), (ax, ay, az)) tuples from ``MPU6xxx.bias_point()``, at
+    distinct temperatures. Outside the measured span the values are held at its edges
+    (``CLAMP``) or the polynomials continue over half the span again (``EXTRAPOLATE``).
+    """
+
+    def __init__(self, points, policy=CLAMP):
+        if not points:
+            raise ValueError("need at least one bias point")
+        pts = sorted(points)  # by temperature reading first
+        ts = [int(p[0]) for p in pts]
+        for i in range(1, len(ts)):
+            if ts[i] == ts[i - 1]:
+                raise ValueError("two bias points at the same temperature reading %d" % ts[i])
+        for p in pts:
+            if len(p[1]) != 3 or len(p[2]) != 3:
+                raise ValueError("a bias point is (t_raw, (gx, gy, gz), (ax, ay, az)), got %r" % (p,))
+        if policy not in (CLAMP, EXTRAPOLATE):
+            raise ValueError("policy must be CLAMP or EXTRAPOLATE")
+        self.points = pts
+        self.policy = policy
+        self.t_ref = ts[len(ts) // 2]
+        self.t_cal = (ts[0], ts[-1]) if len(ts) > 1 else (ts[0] - 1, ts[0] + 1)
+        ys = [[float(p[1][k]) for p in pts] for k in range(3)] + [[float(p[2][k]) for p in pts] for k in range(3)]
+        self.coeffs = [_fit(ts, y, self.t_ref) for y in ys]
+        # apply(0, axis) of this compensator = round(value / scale): register LSB for the gyro,
+        # 15-bit field units (2 word LSB) for the accel, whose bit 0 is not ours to set
+        self._hw = Compensator(
+            [[-c for c in cs] for cs in self.coeffs],
+            [[1.0]] * 3 + [[2.0]] * 3,
+            self.t_cal,
+            out_scale=1.0,
+            policy=policy,
+            t_ref=self.t_ref,
+        )
+
+    def value(self, axis, t_raw):
+        """Float register value of ``axis`` (0..5) at t_raw, as fitted (reference, set-up use)."""
+        lo, hi = self._hw.t_in if self.policy == EXTRAPOLATE else self.t_cal
+        t = min(max(t_raw, lo), hi)
+        u = float(t - self.t_ref)
+        v = 0.0
+        for c in reversed(self.coeffs[axis]):
+            v = v * u + c
+        return v
+
+    def targets(self, t_raw):
+        """((gx, gy, gz), (ax, ay, az)) register values for temperature reading t_raw."""
+        hw = self._hw
+        hw.update(t_raw)
+        g = (hw.apply(0, 0), hw.apply(0, 1), hw.apply(0, 2))
+        a = (hw.apply(0, 3) * 2, hw.apply(0, 4) * 2, hw.apply(0, 5) * 2)
+        return (g, a)
+
+    def offset_poly(self, axis, base, k):
+        """Output offset vs temperature when ``base`` is held: (base - value(t)) * k LSB."""
+        c = [-v * k for v in self.coeffs[axis]]
+        c[0] += base * k
+        return c
+
+    def to_ints(self):
+        """Flat ints for a coefficient store: [n, t, 6 values * 16] per point."""
+        out = [len(self.points)]
+        for t, g, a in self.points:
+            out.append(int(t))
+            for v in tuple(g) + tuple(a):
+                out.append(int(round(v * _FRAC)))
+        return out
+
+    @classmethod
+    def from_ints(cls, ints, policy=CLAMP):
+        """Rebuild a model saved with to_ints()."""
+        if not ints or len(ints) != 1 + 7 * ints[0]:
+            raise ValueError("not a BiasModel record: %r" % (ints,))
+        pts = []
+        for i in range(ints[0]):
+            r = ints[1 + 7 * i : 8 + 7 * i]
+            pts.append((r[0], tuple(v / _FRAC for v in r[1:4]), tuple(v / _FRAC for v in r[4:7])))
+        return cls(pts, policy)
