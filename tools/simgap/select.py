@@ -1,0 +1,167 @@
+"""Greedy choice of effects by how much each shrinks the held-out residual, with a block
+t-test for significance and a check on which candidates the data cannot tell apart."""
+import numpy as np
+
+from .effects import EFFECTS
+from .logio import AXES
+
+T_SIG = 3.0          # block t-statistic an improvement must reach
+MIN_REL = 0.01       # ... and the held-out sum of squares must drop by at least 1 %
+MIN_NOISE = 0.02     # ... and by at least 2 % of the noise variance (not a rounding win)
+RIVAL = 0.8          # a rival this close to the winner, absorbed by it, is not identifiable
+
+# Experiments that separate two effects the data confounds.
+NEEDS = {
+    frozenset({"hysteresis", "temp_rate"}): "two ramp rates, and soaks reached from above and below",
+    frozenset({"offset_temperature", "sensitivity_temperature"}): "several input levels (rates or orientations) at each temperature",
+    frozenset({"offset_temperature", "hysteresis"}): "a heating branch as well as a cooling branch",
+    frozenset({"offset_temperature", "drift"}): "a soak at constant temperature, or a second temperature cycle",
+    frozenset({"offset_temperature", "temp_rate"}): "two ramp rates over the same temperatures",
+    frozenset({"drift", "temp_rate"}): "a long soak after power-on, and a repeated ramp",
+    frozenset({"drift", "hysteresis"}): "a repeated temperature cycle",
+    frozenset({"drift", "turn_on_bias"}): "several power-on runs at the same temperature",
+    frozenset({"cross_axis", "g_sensitivity"}): "six orientations while rotating about each axis",
+    frozenset({"cross_axis", "nonlinearity"}): "rotation about each axis alone at several rates",
+    frozenset({"temp_quantization", "temp_rate"}): "a slower ramp or a finer temperature reading",
+    frozenset({"temp_quantization", "offset_temperature"}): "a finer temperature reading",
+    frozenset({"supply", "offset_temperature"}): "supply steps at constant temperature",
+    frozenset({"supply", "drift"}): "supply steps at constant temperature",
+}
+
+
+def needs(a, b):
+    return NEEDS.get(frozenset({a, b}), "an experiment that varies them independently")
+
+
+def block_t(d, nblocks=40):
+    """t-statistic of mean(d) from contiguous block means, so slowly varying residuals
+    (which are correlated sample to sample) are not counted as independent evidence."""
+    n = len(d)
+    B = max(2, min(nblocks, n // 25))
+    means = np.array([c.mean() for c in np.array_split(d, B)])
+    s = means.std(ddof=1)
+    if s == 0:
+        return np.inf if means.mean() > 0 else 0.0
+    return float(means.mean() / (s / np.sqrt(B)))
+
+
+class Greedy:
+    def __init__(self, prob, sigma):
+        self.prob = prob
+        self.sigma = sigma                      # noise floor per axis of the scoring set
+        self.state = {a: [] for a in range(3)}  # axis -> [(effect, shape)]
+        self.cur = {a: prob.evaluate(a, []) for a in range(3)}
+        self.steps = []
+        self.untried = {}
+        self.avail = {}
+        for e in EFFECTS:
+            ax = []
+            for a in range(3):
+                ok, why = e.available(prob.ctx, prob.train, a)
+                if ok:
+                    ax.append(a)
+                else:
+                    self.untried.setdefault(e.name, why)
+            if ax:
+                self.avail[e.name] = ax
+                self.untried.pop(e.name, None)
+
+    def _score_set(self, res):
+        return res["w"] if res["w"] is not None else res["cv"]
+
+    def _try(self, name, axis):
+        """Best shape of one effect on one axis (by training held-out error) and its
+        withheld improvement over the current state."""
+        e = next(x for x in EFFECTS if x.name == name)
+        best = None
+        for shape in e.shapes(self.prob.ctx):
+            res = self.prob.evaluate(axis, self.state[axis] + [(name, shape)], withheld=False)
+            ss = float(np.sum(res["cv"] ** 2))
+            if best is None or ss < best[0]:
+                best = (ss, shape)
+        shape = best[1]
+        res = self.prob.evaluate(axis, self.state[axis] + [(name, shape)])
+        r0, r1 = self._score_set(self.cur[axis]), self._score_set(res)
+        ss0, ss1 = float(np.sum(r0 ** 2)), float(np.sum(r1 ** 2))
+        t = block_t(r0 ** 2 - r1 ** 2)
+        sig2 = self.sigma[axis] ** 2
+        cv_ok = True
+        if res["w"] is not None:
+            # With a withheld log the training segments must agree, not just that one log.
+            cv_ok = np.sum(res["cv"] ** 2) <= np.sum(self.cur[axis]["cv"] ** 2)
+        significant = bool(t > T_SIG and ss0 - ss1 > MIN_REL * ss0
+                           and ss0 - ss1 > MIN_NOISE * len(r0) * sig2 and cv_ok)
+        return {"shape": shape, "res": res, "rms_before": float(np.sqrt(ss0 / len(r0))),
+                "rms_after": float(np.sqrt(ss1 / len(r1))), "t": t, "significant": significant,
+                "score": (ss0 - ss1) / max(sig2, 1e-300)}
+
+    def run(self):
+        remaining = [n for n in self.avail]
+        chosen = []
+        while True:
+            trials = {n: {a: self._try(n, a) for a in self.avail[n]} for n in remaining}
+            scores = {n: sum(v["score"] for v in tr.values() if v["significant"])
+                      for n, tr in trials.items()}
+            sig = [n for n in remaining if any(v["significant"] for v in trials[n].values())]
+            step = {"trials": trials, "scores": scores, "chosen": None}
+            self.steps.append(step)
+            if not sig:
+                break
+            win = max(sig, key=lambda n: scores[n])
+            step["chosen"] = win
+            for a, v in trials[win].items():
+                if v["significant"]:
+                    self.state[a].append((win, v["shape"]))
+                    self.cur[a] = v["res"]
+            chosen.append(win)
+            remaining.remove(win)
+            if not remaining:
+                self.steps.append({"trials": {}, "scores": {}, "chosen": None})
+                break
+        return chosen
+
+    def confusions(self):
+        """Pairs the greedy path could not tell apart: at the step one was chosen, the other
+        scored almost as well and stopped mattering once the winner was in."""
+        out, apart = [], []
+        for s, nxt in zip(self.steps[:-1], self.steps[1:]):
+            win = s["chosen"]
+            if win is None:
+                continue
+            for n, sc in s["scores"].items():
+                if n == win or sc <= 0:
+                    continue
+                absorbed = n in nxt["scores"] and nxt["scores"][n] < 0.2 * sc
+                ratio = sc / s["scores"][win]
+                if absorbed and ratio >= RIVAL:
+                    out.append({"effects": [win, n], "needs": needs(win, n),
+                                "score_ratio": round(ratio, 3)})
+                elif absorbed:
+                    apart.append({"chosen": win, "rival": n, "score_ratio": round(ratio, 3)})
+        return out, apart
+
+
+def design_gaps(prob, verdict, untried):
+    """Confounds built into the experiment itself, found from the logs rather than the fit."""
+    out = []
+    log = prob.train.log
+    from . import prep
+    br = prep.branch(prep.temp_rate(log))
+    if "offset_temperature" in verdict and "sensitivity_temperature" in untried:
+        out.append({"effects": ["offset_temperature", "sensitivity_temperature"],
+                    "needs": needs("offset_temperature", "sensitivity_temperature")})
+    if not np.any(br == "heating") or not np.any(br == "cooling"):
+        out.append({"effects": ["hysteresis", "offset_temperature"],
+                    "needs": needs("hysteresis", "offset_temperature")})
+    on = log.t - log.t[prep.run_starts(log)]
+    if np.std(on) > 0 and np.std(log.temp) > 0 and abs(np.corrcoef(on, log.temp)[0, 1]) > 0.9:
+        out.append({"effects": ["drift", "offset_temperature"],
+                    "needs": needs("drift", "offset_temperature")})
+    if "g_sensitivity" in untried and prob.ctx.sensor != "accel":
+        out.append({"effects": ["g_sensitivity", "offset_temperature"],
+                    "needs": "several orientations relative to gravity"})
+    return out
+
+
+def axis_names(axes):
+    return [AXES[a] for a in axes]
