@@ -37,35 +37,39 @@ def diagnose(train, withheld=None, model=None):
 
     sim_only = [_rms(scored(prob.evaluate(a, []))) for a in range(3)]
     effects = []
+    order = {n: i for i, n in enumerate(verdict)}
     for name in CATALOGUE:
         if name not in g.avail:
             continue
-        step_i = next((i for i, s in enumerate(g.steps) if s["chosen"] == name), None)
-        trials = g.steps[step_i]["trials"][name] if step_i is not None else \
-            next((s["trials"][name] for s in reversed(g.steps) if name in s["trials"]))
-        sig_axes = [a for a, v in trials.items() if v["significant"]]
-        axes = sig_axes if (step_i is not None and sig_axes) else list(trials)
-        before = {a: trials[a]["rms_before"] for a in trials}
-        after = {a: trials[a]["rms_after"] for a in trials}
+        rec = {a: g.record[(name, a)] for a in g.avail[name] if (name, a) in g.record}
+        added = [a for a in rec if (name, a) in dict.fromkeys(
+            (n, ax) for ax, blocks in g.state.items() for n, _ in blocks)]
+        axes = added or list(rec)
+        before = {a: rec[a]["rms_before"] for a in rec}
+        after = {a: rec[a]["rms_after"] for a in rec}
         b2 = sum(before[a] ** 2 for a in axes)
         a2 = sum(after[a] ** 2 for a in axes)
         effects.append({
             "name": name, "axes": [AXES[a] for a in axes],
-            "withheld_rms_before": _per_axis(before, trials),
-            "withheld_rms_after": _per_axis(after, trials),
+            "withheld_rms_before": _per_axis(before, rec),
+            "withheld_rms_after": _per_axis(after, rec),
             "shrink": float(1 - np.sqrt(a2 / b2)) if b2 > 0 else 0.0,
-            "significant": step_i is not None,
-            "step": step_i,
-            "shape": {AXES[a]: _shape_str(v["shape"]) for a, v in trials.items()},
-            "t": {AXES[a]: round(float(v["t"]), 2) for a, v in trials.items()},
+            "significant": name in order,
+            "rank": order.get(name),
+            "shape": {AXES[a]: _shape_str(v["shape"]) for a, v in rec.items()},
+            "t": {AXES[a]: round(float(v["t"]), 2) for a, v in rec.items()},
         })
     final = [_rms(scored(g.cur[a])) for a in range(3)]
+    # Waterfall: per-axis withheld RMS after each greedy step.
     waterfall = [{"added": None, "withheld_rms": _per_axis(sim_only, range(3))}]
-    for e in sorted((e for e in effects if e["significant"]), key=lambda e: e["step"]):
+    for s in g.steps:
+        if s["chosen"] is None:
+            continue
         prev = dict(waterfall[-1]["withheld_rms"])
-        for ax in e["axes"]:
-            prev[ax] = e["withheld_rms_after"][ax]
-        waterfall.append({"added": e["name"], "withheld_rms": prev})
+        for a, v in s["trials"][s["chosen"]].items():
+            if v["significant"]:
+                prev[AXES[a]] = v["rms_after"]
+        waterfall.append({"added": s["chosen"], "withheld_rms": prev})
     confused, apart = g.confusions()
     gaps = design_gaps(prob, verdict, g.untried)
     seen = {frozenset(c["effects"]) for c in confused}

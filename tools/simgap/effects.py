@@ -92,16 +92,20 @@ class Hysteresis(Effect):
 
 
 class TempRate(Effect):
-    """Filtered derivative: T - lowpass(T, tau) ~ tau * dT/dt for slow ramps."""
+    """Filtered derivatives: D = T - lowpass(T, tau) ~ tau * dT/dt for slow ramps. Two time
+    constants (tau, 4 tau) let it follow a lag that is not a single pole; D*d and D^2 let the
+    lag act through a temperature curve whose slope is not constant."""
     name = "temp_rate"
 
     def shapes(self, ctx):
         lo = max(3 * ctx.dt, ctx.run_span / 2000)
-        return list(np.geomspace(lo, max(ctx.run_span / 4, 2 * lo), 8))
+        return list(np.geomspace(lo, max(ctx.run_span / 8, 2 * lo), 7))
 
     def columns(self, ctx, p, shape, axis):
-        D = (p.log.temp - F.lowpass(p, shape)) / ctx.tscale
-        return np.column_stack([D, D * p.d])
+        T = p.log.temp
+        D1 = (T - F.lowpass(p, shape)) / ctx.tscale
+        D2 = (T - F.lowpass(p, 4 * shape)) / ctx.tscale
+        return np.column_stack([D1, D1 * p.d, D2, D2 * p.d, D1 * D1])
 
 
 class CrossAxis(Effect):
@@ -177,14 +181,15 @@ class Supply(Effect):
         return True, ""
 
     def shapes(self, ctx):
-        return ["linear", "quadratic", "linear+ratiometric", "linear+temperature"]
+        return ["linear", "quadratic", "linear+ratiometric", "quadratic+ratiometric", "full"]
 
     def columns(self, ctx, p, shape, axis):
         s = p.log.supply if p.log.supply is not None else np.full(len(p), ctx.supply_mean)
         v = (s - ctx.supply_mean) / ctx.supply_std
-        extra = {"linear": None, "quadratic": v ** 2, "linear+ratiometric": v * p.r[:, axis],
-                 "linear+temperature": v * p.d}[shape]
-        return v[:, None] if extra is None else np.column_stack([v, extra])
+        vr = v * p.r[:, axis]
+        cols = {"linear": [v], "quadratic": [v, v * v], "linear+ratiometric": [v, vr],
+                "quadratic+ratiometric": [v, v * v, vr], "full": [v, v * v, vr, v * p.d]}[shape]
+        return np.column_stack(cols)
 
 
 class Drift(Effect):
@@ -213,8 +218,7 @@ class Drift(Effect):
 
 class TurnOnBias(Effect):
     """A different offset at each power-on. Per-run constants are fitted on the training log;
-    a run never seen in the fit gets its constant from its first STARTUP_FRACTION of samples,
-    the start-up bias capture a user would do (see select.py)."""
+    a run never seen in the fit gets its own constant (see fit._startup_correct)."""
     name = "turn_on_bias"
     per_run = True
 

@@ -41,8 +41,10 @@ class Prepared:
         self.r = log.ref / ctx.ref_scale
         self.run_start = prep.run_starts(log)
         self.ton = log.t - log.t[self.run_start]
-        seg = np.zeros(len(log), bool)
-        seg[self.run_start] = True            # filters restart at power-on only
+        # Thermal lag and package hysteresis are physical states that survive a power cycle,
+        # so the filters run straight through run changes; they restart only where the clock
+        # does (a file whose runs each start at time 0), since the history is unknown there.
+        seg = np.r_[True, np.diff(log.t) <= 0]
         self.restart = seg
         self.cache = {}
 

@@ -8,7 +8,6 @@ from .effects import BY_NAME
 from .features import Context, Prepared
 from .model import base_columns
 
-STARTUP_FRACTION = 0.1   # share of an unseen run used to capture its turn-on bias
 RCOND = 1e-10
 
 
@@ -120,9 +119,11 @@ def _solve(G, b):
 
 
 def _startup_correct(r, runs, unseen):
+    """Give each run the fit never saw its own constant (the mean of its residual): that is
+    what 'the offset differs from run to run' predicts - one unknown number per power-on,
+    which a user captures at start-up. One number per run costs the score next to nothing."""
     r = r.copy()
     for run in np.unique(runs[unseen]):
-        idx = np.flatnonzero((runs == run) & unseen)
-        k = max(5, int(np.ceil(STARTUP_FRACTION * idx.size)))
-        r[idx] -= np.median(r[idx[:k]])
+        idx = (runs == run) & unseen
+        r[idx] -= np.mean(r[idx])
     return r

@@ -22,7 +22,7 @@ def text(res):
     else:
         L.append("verdict: none - the sim explains the data down to the noise floor "
                  "as far as this data can tell")
-    for e in sorted(res["effects"], key=lambda e: (not e["significant"], e["step"] or 0, -e["shrink"])):
+    for e in sorted(res["effects"], key=lambda e: (not e["significant"], e["rank"] or 0, -e["shrink"])):
         mark = "*" if e["significant"] else " "
         ax = ",".join(e["axes"])
         pa = "; ".join(f"{a} {e['withheld_rms_before'][a]:.4g}->{e['withheld_rms_after'][a]:.4g}"

@@ -5,7 +5,8 @@ import numpy as np
 from .effects import EFFECTS
 from .logio import AXES
 
-T_SIG = 3.0          # block t-statistic an improvement must reach
+T_SIG = 2.0          # block t-statistic an improvement must reach (with the CV check below,
+                     # two independent held-out sets must agree)
 MIN_REL = 0.01       # ... and the held-out sum of squares must drop by at least 1 %
 MIN_NOISE = 0.02     # ... and by at least 2 % of the noise variance (not a rounding win)
 RIVAL = 0.8          # a rival this close to the winner, absorbed by it, is not identifiable
@@ -88,7 +89,7 @@ class Greedy:
         cv_ok = True
         if res["w"] is not None:
             # With a withheld log the training segments must agree, not just that one log.
-            cv_ok = np.sum(res["cv"] ** 2) <= np.sum(self.cur[axis]["cv"] ** 2)
+            cv_ok = np.sum(res["cv"] ** 2) < np.sum(self.cur[axis]["cv"] ** 2)
         significant = bool(t > T_SIG and ss0 - ss1 > MIN_REL * ss0
                            and ss0 - ss1 > MIN_NOISE * len(r0) * sig2 and cv_ok)
         return {"shape": shape, "res": res, "rms_before": float(np.sqrt(ss0 / len(r0))),
@@ -96,13 +97,16 @@ class Greedy:
                 "score": (ss0 - ss1) / max(sig2, 1e-300)}
 
     def run(self):
-        remaining = [n for n in self.avail]
+        """Add the best significant effect (on the axes where it is significant) until none
+        is left; an effect already added on some axes stays a candidate for the others."""
+        pool = {n: list(ax) for n, ax in self.avail.items()}
         chosen = []
+        self.record = {}          # (effect, axis) -> the trial that added it
         while True:
-            trials = {n: {a: self._try(n, a) for a in self.avail[n]} for n in remaining}
+            trials = {n: {a: self._try(n, a) for a in ax} for n, ax in pool.items() if ax}
             scores = {n: sum(v["score"] for v in tr.values() if v["significant"])
                       for n, tr in trials.items()}
-            sig = [n for n in remaining if any(v["significant"] for v in trials[n].values())]
+            sig = [n for n in trials if any(v["significant"] for v in trials[n].values())]
             step = {"trials": trials, "scores": scores, "chosen": None}
             self.steps.append(step)
             if not sig:
@@ -113,11 +117,14 @@ class Greedy:
                 if v["significant"]:
                     self.state[a].append((win, v["shape"]))
                     self.cur[a] = v["res"]
-            chosen.append(win)
-            remaining.remove(win)
-            if not remaining:
-                self.steps.append({"trials": {}, "scores": {}, "chosen": None})
-                break
+                    self.record[(win, a)] = v
+                    pool[win].remove(a)
+            if win not in chosen:
+                chosen.append(win)
+        # Effects (or axes) never added: their trial against the final model.
+        for n, tr in self.steps[-1]["trials"].items():
+            for a, v in tr.items():
+                self.record.setdefault((n, a), v)
         return chosen
 
     def confusions(self):
@@ -131,7 +138,7 @@ class Greedy:
             for n, sc in s["scores"].items():
                 if n == win or sc <= 0:
                     continue
-                absorbed = n in nxt["scores"] and nxt["scores"][n] < 0.2 * sc
+                absorbed = nxt["scores"].get(n, 0.0) < 0.2 * sc
                 ratio = sc / s["scores"][win]
                 if absorbed and ratio >= RIVAL:
                     out.append({"effects": [win, n], "needs": needs(win, n),
