@@ -31,6 +31,7 @@ def diagnose(train, withheld=None, model=None):
         source = f"held-out segments of the training log ({prob.nfold} contiguous blocks)"
     g = Greedy(prob, sigma)
     verdict = g.run()
+    g.refine()
 
     def scored(res):
         return res["w"] if res["w"] is not None else res["cv"]
