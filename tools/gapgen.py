@@ -10,7 +10,7 @@ catalogue's effects in shapes the tool's families do NOT contain:
   - offset_temperature: a Gaussian band plus a cubic; sensitivity_temperature: a cosh bowl;
   - nonlinearity: tanh compression plus an even term; cross_axis: a small rotation;
   - g_sensitivity: a full 3x3 g-matrix; supply: linear+quadratic offset and ratiometric gain;
-  - turn_on_bias: a random offset per power-on; temp_quantization: a 0.5 degC reading.
+  - turn_on_bias: a random offset per power-on; temp_quantization: a 1 degC reading.
 Every log carries all optional columns, so the tool always has every effect to choose from.
 
 `python -m tools.gapgen OUTDIR [--seed N]` writes one case per effect, the pairs, the no-effect
@@ -105,7 +105,7 @@ def make_log(rng, params, effects, n, kind, runs, outliers):
     T_part = rc(chamber, 60.0)                            # package follows the air
     T_mems = rc(rc(T_part, 50.0), 120.0) if "temp_rate" in effects else T_part
     reading = T_part + rng.normal(0, 0.02, n)
-    step = 0.5 if "temp_quantization" in effects else 1 / 256
+    step = 1.0 if "temp_quantization" in effects else 1 / 256
     reading = np.round(reading / step) * step
     rate_levels = [-150, -75, -25, 0, 0, 0, 25, 75, 150]
     ref = np.column_stack([piecewise(rng, n, rate_levels, (20, 60)) for _ in range(3)])

@@ -102,9 +102,12 @@ class TempRate(Effect):
         return list(np.geomspace(lo, max(ctx.run_span / 8, 2 * lo), 7))
 
     def columns(self, ctx, p, shape, axis):
-        T = p.log.temp
-        D1 = (T - F.lowpass(p, shape)) / ctx.tscale
-        D2 = (T - F.lowpass(p, 4 * shape)) / ctx.tscale
+        # On a staircase reading a short filter mostly sees the steps, not the lag; take the
+        # derivative of the staircase-free estimate so the two effects stay apart.
+        q = ctx.quantised
+        T = F.unstair(p, 0.0) if q else p.log.temp
+        D1 = (T - F.lowpass(p, shape, q)) / ctx.tscale
+        D2 = (T - F.lowpass(p, 4 * shape, q)) / ctx.tscale
         return np.column_stack([D1, D1 * p.d, D2, D2 * p.d, D1 * D1])
 
 

@@ -29,6 +29,7 @@ class Context:
             self.supply_mean = float(np.mean(train.supply))
             self.supply_std = float(np.std(train.supply)) or 1.0
         self.sensor = train.meta.get("sensor", "gyro").strip().lower()
+        self.quantised = quant_step(train) is not None
 
 
 class Prepared:
@@ -57,13 +58,14 @@ def _restart_ranges(restart):
     return zip(starts, list(starts[1:]) + [len(restart)])
 
 
-def lowpass(p, tau):
+def lowpass(p, tau, destair=False):
     """First-order low pass of the temperature reading with time constant tau (s), exact for
-    any sample spacing, restarted at every power-on."""
-    key = ("lp", tau)
+    any sample spacing. destair=True filters the staircase-free estimate instead (unstair)."""
+    key = ("lp", tau, destair)
     if key in p.cache:
         return p.cache[key]
-    t, x = p.log.t, p.log.temp
+    t = p.log.t
+    x = unstair(p, 0.0) if destair else p.log.temp
     y = np.empty_like(x)
     for a, b in _restart_ranges(p.restart):
         dt = np.diff(t[a:b])
