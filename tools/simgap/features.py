@@ -42,6 +42,12 @@ class Prepared:
         self.r = log.ref / ctx.ref_scale
         self.run_start = prep.run_starts(log)
         self.ton = log.t - log.t[self.run_start]
+        if log.run is None and "power_on_s" in log.meta:
+            # A log cut from a longer run (a withheld segment) says when power came on.
+            try:
+                self.ton = log.t - float(log.meta["power_on_s"])
+            except ValueError:
+                pass
         # Thermal lag and package hysteresis are physical states that survive a power cycle,
         # so the filters run straight through run changes; they restart only where the clock
         # does (a file whose runs each start at time 0), since the history is unknown there.
