@@ -8,6 +8,7 @@ from .logio import AXES
 T_SIG = 2.0          # block t-statistic an improvement must reach (with the CV check below,
                      # two independent held-out sets must agree)
 T_STRONG = 4.0       # withheld t-statistic that needs no support from the training segments
+Z_STRONG = 8.0       # white-noise z of the gain for effects living in a few stretches
 MIN_REL = 0.01       # ... and the held-out sum of squares must drop by at least 1 %
 MIN_NOISE = 0.02     # ... and by at least 2 % of the noise variance (not a rounding win)
 RIVAL = 0.8          # a rival this close to the winner, absorbed by it, is not identifiable
@@ -95,7 +96,13 @@ class Greedy:
             # withheld improvement stands on its own.
             cv_ok = (np.sum(res["cv"] ** 2) < np.sum(self.cur[axis]["cv"] ** 2)
                      or block_t(r0 ** 2 - r1 ** 2) > T_STRONG)
-        significant = bool(t > T_SIG and ss0 - ss1 > MIN_REL * ss0
+        # A large gain concentrated in a few stretches (settling after power-on) has too few
+        # informative blocks for the block test; a white-noise z-test with a high bar takes
+        # it when the block test at least points the same way.
+        delta = r0 - r1
+        z = (ss0 - ss1) / max(2 * self.sigma[axis] * np.sqrt(np.sum(delta ** 2)), 1e-300)
+        strong = z > Z_STRONG and t > 1.0 and ss0 - ss1 > 0.05 * ss0
+        significant = bool((t > T_SIG or strong) and ss0 - ss1 > MIN_REL * ss0
                            and ss0 - ss1 > MIN_NOISE * len(r0) * sig2 and cv_ok)
         return {"shape": shape, "res": res, "rms_before": float(np.sqrt(ss0 / len(r0))),
                 "rms_after": float(np.sqrt(ss1 / len(r1))), "t": t, "significant": significant,
