@@ -38,9 +38,15 @@ def temp_rate(log, window_s=None):
     n = len(t)
     if window_s is None:
         span = t[-1] - t[0]
-        window_s = max(span / 200.0, 5 * np.median(np.diff(t)) if n > 1 else 1.0)
+        dt = np.diff(t)
+        # Wide enough to reach across the gaps of a burst log (PAN: 5 s bursts every 305 s),
+        # where the slope inside one burst is all noise.
+        window_s = max(span / 200.0, 5 * np.median(dt), 2.5 * np.max(dt)) if n > 1 else 1.0
     rate = np.zeros(n)
-    starts = list(segments(log)) + [n]
+    brk = np.r_[True, np.diff(t) <= 0]
+    if log.run is not None:
+        brk[1:] |= np.diff(log.run) != 0
+    starts = list(np.flatnonzero(brk)) + [n]
     for a, b in zip(starts[:-1], starts[1:]):
         ts, Ts = t[a:b], T[a:b]
         if b - a < 3:

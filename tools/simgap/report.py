@@ -25,8 +25,9 @@ def text(res):
     for e in sorted(res["effects"], key=lambda e: (not e["significant"], e["rank"] or 0, -e["shrink"])):
         mark = "*" if e["significant"] else " "
         ax = ",".join(e["axes"])
+        shown = e["axes"] if e["significant"] else e["withheld_rms_before"]
         pa = "; ".join(f"{a} {e['withheld_rms_before'][a]:.4g}->{e['withheld_rms_after'][a]:.4g}"
-                       for a in e["withheld_rms_before"])
+                       for a in shown)
         L.append(f" {mark} {e['name']:<24} shrink {100 * e['shrink']:6.1f}% on {ax:<6} ({pa})")
     fin = res["final"]
     L.append("final withheld RMS: " + ", ".join(

@@ -197,6 +197,16 @@ def design_gaps(prob, verdict, untried):
     if not np.any(br == "heating") or not np.any(br == "cooling"):
         out.append({"effects": ["hysteresis", "offset_temperature"],
                     "needs": needs("hysteresis", "offset_temperature")})
+    # Hysteresis and thermal lag both split heating from cooling; only a change of ramp rate
+    # (lag scales with it, hysteresis does not) or a soak after each separates them. Without
+    # real timestamps there is no rate at all.
+    rate = np.abs(prep.temp_rate(log))
+    moving = rate[br != "soak"]
+    one_rate = moving.size < 10 or np.percentile(moving, 80) < 1.5 * np.percentile(moving, 20)
+    no_clock = "row index" in log.meta.get("time", "")
+    if one_rate or no_clock:
+        out.append({"effects": ["hysteresis", "temp_rate"],
+                    "needs": ("true timestamps, " if no_clock else "") + needs("hysteresis", "temp_rate")})
     on = log.t - log.t[prep.run_starts(log)]
     if np.std(on) > 0 and np.std(log.temp) > 0 and abs(np.corrcoef(on, log.temp)[0, 1]) > 0.9:
         out.append({"effects": ["drift", "offset_temperature"],
