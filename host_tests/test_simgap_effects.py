@@ -121,6 +121,6 @@ def test_noise_floor_ignores_slow_structure_and_spikes():
 def test_spikes_found_even_on_an_input_step():
     log = make(None, n=N, sigma=2.0, seed=8)
     step = int(np.flatnonzero(np.diff(log.ref[:, 2]) != 0)[3]) + 1
-    rows = [10, 500, step, 2222]
+    rows = [0, 500, step, 2222]          # row 0: a spike on the very first sample too
     log.out[rows, [0, 1, 2, 0]] += [300, -250, 400, -200]
     assert set(np.flatnonzero(prep.spikes(log))) == set(rows)

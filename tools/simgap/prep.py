@@ -110,7 +110,7 @@ def spikes(log):
         y = log.out[:, a] - X @ np.linalg.lstsq(X, log.out[:, a], rcond=None)[0]
         local = np.empty(n)
         for s, e in zip(starts[:-1], starts[1:]):
-            local[s:e] = median_filter(y[s:e], size=min(9, max(1, e - s)), mode="nearest")
+            local[s:e] = median_filter(y[s:e], size=min(9, max(1, e - s)), mode="mirror")
         d = y - local
         sig = _robust_sigma(np.diff(y)) / np.sqrt(2)
         if sig > 0:
