@@ -1,0 +1,257 @@
+"""The effect catalogue. Each effect is a family of shapes; a shape gives extra regressor
+columns for one axis. Columns are linear in their coefficients so every candidate is one
+least-squares fit; the nonlinear part of a family (a time constant, a width, a knot count) is
+the shape parameter chosen by held-out error."""
+import numpy as np
+from scipy.interpolate import BSpline
+
+from . import features as F
+
+CATALOGUE = ("offset_temperature", "sensitivity_temperature", "hysteresis", "temp_rate",
+             "cross_axis", "nonlinearity", "g_sensitivity", "supply", "drift",
+             "turn_on_bias", "temp_quantization")
+
+
+def _levels(v, rel=1e-3):
+    """Number of distinct input levels (values closer than rel*range count as one)."""
+    rng = np.ptp(v)
+    if rng == 0:
+        return 1
+    q = np.round(v / (rel * rng))
+    return len(np.unique(q))
+
+
+def _spline(ctx, p, n_inner):
+    key = ("bs", n_inner)
+    if key in p.cache:
+        return p.cache[key]
+    lo, hi = ctx.tmin, ctx.tmax
+    inner = np.linspace(lo, hi, n_inner + 2)[1:-1]
+    knots = np.r_[[lo] * 4, inner, [hi] * 4]
+    # Clamp to the training range: beyond it the spline holds its edge value rather than
+    # extrapolating a cubic, which would invent structure no data supports.
+    x = np.clip(p.log.temp, lo, hi - 1e-9 * max(1.0, hi - lo))
+    m = BSpline.design_matrix(x, knots, 3).toarray()
+    p.cache[key] = m
+    return m
+
+
+class Effect:
+    name = ""
+    per_run = False
+
+    def available(self, ctx, train, axis):
+        return True, ""
+
+    def shapes(self, ctx):
+        return [None]
+
+    def columns(self, ctx, p, shape, axis):
+        raise NotImplementedError
+
+
+class OffsetTemperature(Effect):
+    name = "offset_temperature"
+
+    def shapes(self, ctx):
+        return [1, 2, 4, 7, 11]
+
+    def columns(self, ctx, p, shape, axis):
+        return _spline(ctx, p, shape)
+
+
+class SensitivityTemperature(Effect):
+    name = "sensitivity_temperature"
+
+    def available(self, ctx, train, axis):
+        if _levels(train.log.ref[:, axis]) < 2:
+            return False, "the input on this axis never changes"
+        return True, ""
+
+    def shapes(self, ctx):
+        return [0, 1, 2, 4, 7]
+
+    def columns(self, ctx, p, shape, axis):
+        r = p.r[:, axis:axis + 1]
+        if shape == 0:
+            return r * np.column_stack([p.d ** 2, p.d ** 3])
+        return r * _spline(ctx, p, shape)
+
+
+class Hysteresis(Effect):
+    """Prandtl-Ishlinskii style: three play operators of widths w, 2w, 4w."""
+    name = "hysteresis"
+
+    def shapes(self, ctx):
+        span = max(ctx.tmax - ctx.tmin, 1.0)
+        return list(np.geomspace(0.25, span / 6, 6))
+
+    def columns(self, ctx, p, shape, axis):
+        T = p.log.temp
+        return np.column_stack([(F.play(p, w) - T) / ctx.tscale for w in (shape, 2 * shape, 4 * shape)])
+
+
+class TempRate(Effect):
+    """Filtered derivatives: D = T - lowpass(T, tau) ~ tau * dT/dt for slow ramps. Two time
+    constants (tau, 4 tau) let it follow a lag that is not a single pole; D*d and D^2 let the
+    lag act through a temperature curve whose slope is not constant."""
+    name = "temp_rate"
+
+    def shapes(self, ctx):
+        lo = max(3 * ctx.dt, ctx.run_span / 2000)
+        return list(np.geomspace(lo, max(ctx.run_span / 8, 2 * lo), 7))
+
+    def columns(self, ctx, p, shape, axis):
+        # On a staircase reading a short filter mostly sees the steps, not the lag; take the
+        # derivative of the staircase-free estimate so the two effects stay apart.
+        q = ctx.quantised
+        T = F.unstair(p, 0.0) if q else p.log.temp
+        D1 = (T - F.lowpass(p, shape, q)) / ctx.tscale
+        D2 = (T - F.lowpass(p, 4 * shape, q)) / ctx.tscale
+        return np.column_stack([D1, D1 * p.d, D2, D2 * p.d, D1 * D1])
+
+
+class CrossAxis(Effect):
+    name = "cross_axis"
+
+    def available(self, ctx, train, axis):
+        others = [b for b in range(3) if b != axis]
+        if all(_levels(train.log.ref[:, b]) < 2 for b in others):
+            return False, "the input on the other axes never changes"
+        return True, ""
+
+    def shapes(self, ctx):
+        return ["linear", "linear+temperature"]
+
+    def columns(self, ctx, p, shape, axis):
+        o = np.delete(p.r, axis, axis=1)
+        if shape == "linear":
+            return o
+        return np.column_stack([o, o * p.d[:, None]])
+
+
+class Nonlinearity(Effect):
+    name = "nonlinearity"
+
+    def available(self, ctx, train, axis):
+        if _levels(train.log.ref[:, axis]) < 3:
+            return False, "fewer than three input levels on this axis"
+        return True, ""
+
+    def shapes(self, ctx):
+        return ["square", "cube", "square+cube", "odd-square+cube"]
+
+    def columns(self, ctx, p, shape, axis):
+        r = p.r[:, axis]
+        return {"square": lambda: r[:, None] ** 2,
+                "cube": lambda: r[:, None] ** 3,
+                "square+cube": lambda: np.column_stack([r ** 2, r ** 3]),
+                "odd-square+cube": lambda: np.column_stack([r * np.abs(r), r ** 3])}[shape]()
+
+
+class GSensitivity(Effect):
+    name = "g_sensitivity"
+
+    def available(self, ctx, train, axis):
+        if ctx.sensor == "accel":
+            return False, "the log is an accelerometer's"
+        if train.log.acc is None:
+            return False, "no acc_x/acc_y/acc_z columns"
+        if np.max(np.ptp(train.log.acc, axis=0)) < 0.05:
+            return False, "the acceleration never changes (one orientation)"
+        return True, ""
+
+    def shapes(self, ctx):
+        return ["linear", "linear+temperature"]
+
+    def columns(self, ctx, p, shape, axis):
+        a = p.log.acc
+        if a is None:   # a withheld log without the columns: the effect cannot act there
+            a = np.zeros((len(p), 3))
+        if shape == "linear":
+            return a
+        return np.column_stack([a, a * p.d[:, None]])
+
+
+class Supply(Effect):
+    name = "supply"
+
+    def available(self, ctx, train, axis):
+        if train.log.supply is None:
+            return False, "no supply_v column"
+        if np.ptp(train.log.supply) < 1e-6:
+            return False, "the supply voltage never changes"
+        return True, ""
+
+    def shapes(self, ctx):
+        return ["linear", "quadratic", "linear+ratiometric", "quadratic+ratiometric", "full"]
+
+    def columns(self, ctx, p, shape, axis):
+        s = p.log.supply if p.log.supply is not None else np.full(len(p), ctx.supply_mean)
+        v = (s - ctx.supply_mean) / ctx.supply_std
+        vr = v * p.r[:, axis]
+        cols = {"linear": [v], "quadratic": [v, v * v], "linear+ratiometric": [v, vr],
+                "quadratic+ratiometric": [v, v * v, vr], "full": [v, v * v, vr, v * p.d]}[shape]
+        return np.column_stack(cols)
+
+
+class Drift(Effect):
+    """Settling after power-on or aging: a single exponential, exponential plus a linear
+    trend, or a hyperbolic settling, each with a time constant from a grid."""
+    name = "drift"
+
+    def shapes(self, ctx):
+        taus = np.geomspace(ctx.run_span / 100, ctx.run_span / 1.5, 6)
+        return [(f, float(tau)) for tau in taus for f in ("exp", "exp+linear", "hyperbolic")]
+
+    def columns(self, ctx, p, shape, axis):
+        f, tau = shape
+        key = ("drift", f, tau)
+        if key not in p.cache:
+            x = p.ton / tau
+            if f == "exp":
+                c = np.exp(-x)[:, None]
+            elif f == "exp+linear":
+                c = np.column_stack([np.exp(-x), p.ton / ctx.run_span])
+            else:
+                c = (1.0 / (1.0 + x))[:, None]
+            p.cache[key] = c
+        return p.cache[key]
+
+
+class TurnOnBias(Effect):
+    """A different offset at each power-on. Per-run constants are fitted on the training log;
+    a run never seen in the fit gets its own constant (see fit._startup_correct)."""
+    name = "turn_on_bias"
+    per_run = True
+
+    def available(self, ctx, train, axis):
+        if train.log.run is None or len(np.unique(train.log.run)) < 2:
+            return False, "the training log holds a single power-on run"
+        return True, ""
+
+    def columns(self, ctx, p, shape, axis):
+        # The caller replaces these with one-hot run columns over the fit rows.
+        return np.zeros((len(p), 0))
+
+
+class TempQuantization(Effect):
+    name = "temp_quantization"
+
+    def available(self, ctx, train, axis):
+        if F.quant_step(train.log) is None:
+            return False, "the temperature reading is not coarse (it changes at most samples)"
+        return True, ""
+
+    def shapes(self, ctx):
+        return [0.0, 0.5, 1.0, 2.0]
+
+    def columns(self, ctx, p, shape, axis):
+        e = (F.unstair(p, shape) - p.log.temp) / ctx.tscale
+        return np.column_stack([e, e * p.d, e * p.r[:, axis]])
+
+
+EFFECTS = [OffsetTemperature(), SensitivityTemperature(), Hysteresis(), TempRate(), CrossAxis(),
+           Nonlinearity(), GSensitivity(), Supply(), Drift(), TurnOnBias(), TempQuantization()]
+BY_NAME = {e.name: e for e in EFFECTS}
+assert tuple(BY_NAME) == CATALOGUE

@@ -1,0 +1,159 @@
+"""Derived signals shared by the effect families: a prepared log (scaled temperature and input,
+time since power-on) and the filters (first-order low pass, play operator, staircase undo)."""
+import numpy as np
+from scipy.signal import lfilter
+
+from . import prep
+
+
+class Context:
+    """Scales and grids fixed from the training log and reused unchanged on withheld logs,
+    so a withheld log is predicted with exactly the columns the fit saw."""
+
+    def __init__(self, train):
+        T = train.temp
+        self.tmin, self.tmax = float(np.min(T)), float(np.max(T))
+        self.t0 = 25.0
+        self.tscale = max(1.0, (self.tmax - self.tmin) / 2)
+        self.ref_scale = np.maximum(np.max(np.abs(train.ref), axis=0), 1e-12)
+        dt = np.diff(train.t)
+        self.dt = float(np.median(dt[dt > 0])) if np.any(dt > 0) else 1.0
+        self.span = max(float(train.t[-1] - train.t[0]), 10 * self.dt)
+        if train.run is not None:
+            on = prep.run_starts(train)
+            self.run_span = max(float(np.max(train.t - train.t[on])), 10 * self.dt)
+        else:
+            self.run_span = self.span
+        self.supply_mean = self.supply_std = None
+        if train.supply is not None:
+            self.supply_mean = float(np.mean(train.supply))
+            self.supply_std = float(np.std(train.supply)) or 1.0
+        self.sensor = train.meta.get("sensor", "gyro").strip().lower()
+        self.quantised = quant_step(train) is not None
+
+
+class Prepared:
+    """A log plus the signals computed from it once; `cache` holds filter outputs."""
+
+    def __init__(self, log, ctx, mask):
+        self.log = log
+        self.mask = mask                      # rows used (spikes excluded)
+        self.d = (log.temp - ctx.t0) / ctx.tscale
+        self.r = log.ref / ctx.ref_scale
+        self.run_start = prep.run_starts(log)
+        self.ton = log.t - log.t[self.run_start]
+        if log.run is None and "power_on_s" in log.meta:
+            # A log cut from a longer run (a withheld segment) says when power came on.
+            try:
+                self.ton = log.t - float(log.meta["power_on_s"])
+            except ValueError:
+                pass
+        # Thermal lag and package hysteresis are physical states that survive a power cycle,
+        # so the filters run straight through run changes; they restart only where the clock
+        # does (a file whose runs each start at time 0), since the history is unknown there.
+        seg = np.r_[True, np.diff(log.t) <= 0]
+        self.restart = seg
+        self.cache = {}
+
+    def __len__(self):
+        return len(self.log)
+
+
+def _restart_ranges(restart):
+    starts = np.flatnonzero(restart)
+    return zip(starts, list(starts[1:]) + [len(restart)])
+
+
+def lowpass(p, tau, destair=False):
+    """First-order low pass of the temperature reading with time constant tau (s), exact for
+    any sample spacing. destair=True filters the staircase-free estimate instead (unstair)."""
+    key = ("lp", tau, destair)
+    if key in p.cache:
+        return p.cache[key]
+    t = p.log.t
+    x = unstair(p, 0.0) if destair else p.log.temp
+    y = np.empty_like(x)
+    for a, b in _restart_ranges(p.restart):
+        dt = np.diff(t[a:b])
+        if b - a > 1 and np.ptp(dt) <= 1e-6 * max(np.median(dt), 1e-12):
+            al = 1.0 - np.exp(-np.median(dt) / tau)   # uniform steps: use the fast IIR
+            y[a:b], _ = lfilter([al], [1, al - 1], x[a:b], zi=[(1 - al) * x[a]])
+        else:
+            al = 1.0 - np.exp(-np.r_[0.0, dt] / tau)
+            v = x[a]
+            out = y[a:b]
+            xs = x[a:b]
+            for i in range(b - a):
+                v += al[i] * (xs[i] - v)
+                out[i] = v
+    p.cache[key] = y
+    return y
+
+
+def play(p, width):
+    """Play (backlash) operator on the temperature reading: the state only moves once the
+    reading has moved more than width/2 away from it, so it remembers the last reversal."""
+    key = ("play", width)
+    if key in p.cache:
+        return p.cache[key]
+    x = p.log.temp
+    y = np.empty_like(x)
+    h = width / 2
+    for a, b in _restart_ranges(p.restart):
+        v = x[a]
+        xs = x[a:b].tolist()
+        ys = [0.0] * (b - a)
+        for i, xi in enumerate(xs):
+            if xi - h > v:
+                v = xi - h
+            elif xi + h < v:
+                v = xi + h
+            ys[i] = v
+        y[a:b] = ys
+    p.cache[key] = y
+    return y
+
+
+def quant_step(log):
+    """The temperature reading's step if it looks quantised (most samples repeat the previous
+    value), else None."""
+    d = np.abs(np.diff(log.temp))
+    if d.size == 0 or np.mean(d == 0) < 0.3:
+        return None
+    nz = d[d > 0]
+    return float(np.median(nz)) if nz.size else None
+
+
+def unstair(p, smooth):
+    """Estimate the true temperature behind a staircase reading: the true value crosses the
+    midpoint between two steps when the reading changes, so interpolate those crossings in
+    time; `smooth` (in units of the typical time between steps) adds a moving average."""
+    key = ("unstair", smooth)
+    if key in p.cache:
+        return p.cache[key]
+    t, T = p.log.t, p.log.temp
+    est = T.astype(float).copy()
+    gaps = []
+    for a, b in _restart_ranges(p.restart):
+        Ts, ts = T[a:b], t[a:b]
+        ch = np.flatnonzero(np.diff(Ts) != 0) + 1
+        if ch.size >= 2:
+            tc = 0.5 * (ts[ch] + ts[ch - 1])
+            vc = 0.5 * (Ts[ch] + Ts[ch - 1])
+            est[a:b] = np.interp(ts, tc, vc)
+            # Outside the first/last crossing the interpolation would hold a midpoint; the
+            # reading itself is the better guess there.
+            est[a:b][ts < tc[0]] = Ts[ts < tc[0]]
+            est[a:b][ts > tc[-1]] = Ts[ts > tc[-1]]
+            gaps.append(np.median(np.diff(tc)))
+    if smooth > 0 and gaps:
+        dt = np.median(np.diff(t)) if len(t) > 1 else 1.0
+        w = int(round(smooth * np.median(gaps) / max(dt, 1e-12)))
+        if w >= 3:
+            for a, b in _restart_ranges(p.restart):
+                if b - a > w:
+                    k = np.ones(w) / w
+                    pad = np.r_[np.full(w // 2, est[a]), est[a:b], np.full(w - 1 - w // 2, est[b - 1])]
+                    est[a:b] = np.convolve(pad, k, mode="valid")
+    p.cache[key] = est
+    return est

@@ -1,0 +1,148 @@
+"""Reading the diagnosis CSV schema (see docs/simgap.md) into arrays.
+
+The reader is strict on purpose: a silently mis-parsed column would show up later as a
+"sim-to-real gap" and be blamed on the sensor, so every bad cell is reported by line and column.
+"""
+import csv
+import io
+from dataclasses import dataclass, field
+
+import numpy as np
+
+REQUIRED = ("time_s", "temp_c", "out_x", "out_y", "out_z", "ref_x", "ref_y", "ref_z")
+OPTIONAL = ("supply_v", "acc_x", "acc_y", "acc_z", "chamber_c", "run")
+AXES = ("x", "y", "z")
+
+
+class LogError(ValueError):
+    """A log that cannot be used; the message names the file, line and column."""
+
+
+@dataclass
+class Log:
+    name: str
+    t: np.ndarray            # s
+    temp: np.ndarray         # the part's own temperature reading, degC
+    out: np.ndarray          # (N, 3) raw output
+    ref: np.ndarray          # (N, 3) true input
+    meta: dict = field(default_factory=dict)
+    supply: np.ndarray | None = None
+    acc: np.ndarray | None = None      # (N, 3) g, seen by a gyro
+    chamber: np.ndarray | None = None
+    run: np.ndarray | None = None      # int run index 0..R-1 in order of appearance
+
+    def __len__(self):
+        return len(self.t)
+
+    @property
+    def unit(self):
+        return self.meta.get("out_unit", "LSB")
+
+    def subset(self, idx):
+        """Rows idx (bool mask or index array) as a new Log, optional columns kept."""
+        pick = (lambda a: None if a is None else a[idx])
+        return Log(self.name, self.t[idx], self.temp[idx], self.out[idx], self.ref[idx],
+                   dict(self.meta), pick(self.supply), pick(self.acc), pick(self.chamber),
+                   pick(self.run))
+
+
+def read_log(path, text=None):
+    """Read a log file (or `text` if given, `path` then only names it in errors)."""
+    name = str(path)
+    if text is None:
+        try:
+            with open(path, newline="", encoding="utf-8-sig") as f:
+                text = f.read()
+        except OSError as e:
+            raise LogError(f"{name}: cannot read: {e.strerror}") from None
+    lines = text.splitlines()
+    meta = {}
+    lineno = 0
+    # Metadata lines come before the header; blank lines there are tolerated.
+    while lineno < len(lines) and (lines[lineno].startswith("#") or not lines[lineno].strip()):
+        line = lines[lineno].lstrip("#").strip()
+        lineno += 1
+        if not line:
+            continue
+        if ":" not in line:
+            raise LogError(f"{name}: line {lineno}: metadata must be '# key: value', got {line!r}")
+        k, v = line.split(":", 1)
+        meta[k.strip()] = v.strip()
+    if lineno >= len(lines):
+        raise LogError(f"{name}: no header line (expected columns {', '.join(REQUIRED)})")
+    header_line = lineno + 1
+    rows = list(csv.reader(io.StringIO("\n".join(lines[lineno:]))))
+    header = [h.strip() for h in rows[0]]
+    missing = [c for c in REQUIRED if c not in header]
+    if missing:
+        raise LogError(f"{name}: line {header_line}: header lacks required column(s) "
+                       f"{', '.join(missing)}")
+    dup = sorted({h for h in header if header.count(h) > 1 and h in REQUIRED + OPTIONAL})
+    if dup:
+        raise LogError(f"{name}: line {header_line}: column(s) {', '.join(dup)} appear twice")
+    wanted = [c for c in REQUIRED + OPTIONAL if c in header]
+    col = {c: header.index(c) for c in wanted}
+    data = {c: [] for c in wanted}
+    for i, row in enumerate(rows[1:]):
+        ln = header_line + 1 + i
+        if not row or (len(row) == 1 and not row[0].strip()):
+            continue  # a trailing blank line is not an error
+        if len(row) != len(header):
+            raise LogError(f"{name}: line {ln}: {len(row)} fields, header has {len(header)}")
+        for c in wanted:
+            cell = row[col[c]].strip()
+            try:
+                v = float(cell)
+            except ValueError:
+                raise LogError(f"{name}: line {ln}, column {col[c] + 1} ({c}): "
+                               f"not a number: {cell!r}") from None
+            if not np.isfinite(v):
+                raise LogError(f"{name}: line {ln}, column {col[c] + 1} ({c}): "
+                               f"not a finite number: {cell!r}")
+            data[c].append(v)
+    n = len(data["time_s"])
+    if n < 10:
+        raise LogError(f"{name}: only {n} data rows; at least 10 are needed")
+    arr = {c: np.asarray(v, dtype=float) for c, v in data.items()}
+    t = arr["time_s"]
+    back = np.flatnonzero(np.diff(t) < 0)
+    if "run" not in arr and back.size:
+        k = back[0] + 1
+        raise LogError(f"{name}: line {header_line + 1 + k}, column {col['time_s'] + 1} "
+                       f"(time_s): time goes backwards (give a 'run' column if the file "
+                       f"holds several runs)")
+    stack = (lambda cs: np.column_stack([arr[c] for c in cs]))
+    acc_cols = ("acc_x", "acc_y", "acc_z")
+    have_acc = [c in arr for c in acc_cols]
+    if any(have_acc) and not all(have_acc):
+        raise LogError(f"{name}: line {header_line}: acc_x, acc_y, acc_z must come together")
+    run = None
+    if "run" in arr:
+        # Runs are numbered in order of appearance so withheld logs never share ids by accident.
+        _, first, inv = np.unique(arr["run"], return_index=True, return_inverse=True)
+        order = np.argsort(np.argsort(first))
+        run = order[inv].astype(int)
+    return Log(name=name, t=t, temp=arr["temp_c"], out=stack(("out_x", "out_y", "out_z")),
+               ref=stack(("ref_x", "ref_y", "ref_z")), meta=meta,
+               supply=arr.get("supply_v"), acc=stack(acc_cols) if all(have_acc) else None,
+               chamber=arr.get("chamber_c"), run=run)
+
+
+def write_log(path, log_cols, meta=None):
+    """Write columns {name: 1-D array} as a diagnosis CSV (used by the converter and the
+    benchmark generator, which must produce exactly what read_log accepts)."""
+    names = list(log_cols)
+    n = len(log_cols[names[0]])
+    with open(path, "w", newline="") as f:
+        for k, v in (meta or {}).items():
+            f.write(f"# {k}: {v}\n")
+        f.write(",".join(names) + "\n")
+        cols = [np.asarray(log_cols[c]) for c in names]
+        for i in range(n):
+            f.write(",".join(_fmt(c[i]) for c in cols) + "\n")
+
+
+def _fmt(v):
+    if float(v).is_integer() and abs(v) < 1e15:
+        return str(int(v))
+    return f"{float(v):.9g}"

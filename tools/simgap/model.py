@@ -1,0 +1,57 @@
+"""The sim under test: per axis, offset quadratic in temperature and sensitivity linear in it
+(NXP AN12760 / ADI AN-1049 model), either fitted on the training log or given as JSON.
+
+JSON form (`--model`):
+  {"t0_c": 25.0, "axes": {"x": {"offset": [o0, o1, o2], "sensitivity": [s0, s1]}, ...}}
+meaning out = o0 + o1*dT + o2*dT^2 + (s0 + s1*dT) * ref with dT = temp - t0_c, in out units per
+ref unit.
+"""
+import json
+
+import numpy as np
+
+from .logio import AXES, LogError
+
+
+class FixedModel:
+    def __init__(self, t0, coef):
+        self.t0 = t0
+        self.coef = coef  # {axis: (offset[3], sensitivity[2])}
+
+    @classmethod
+    def load(cls, path):
+        try:
+            with open(path) as f:
+                d = json.load(f)
+        except OSError as e:
+            raise LogError(f"{path}: cannot read model: {e.strerror}") from None
+        except json.JSONDecodeError as e:
+            raise LogError(f"{path}: line {e.lineno}, column {e.colno}: not JSON: {e.msg}") from None
+        try:
+            t0 = float(d.get("t0_c", 25.0))
+            coef = {}
+            for a in AXES:
+                ax = d["axes"][a]
+                off = [float(v) for v in ax["offset"]]
+                sen = [float(v) for v in ax["sensitivity"]]
+                if len(off) != 3 or len(sen) != 2:
+                    raise ValueError(f"axis {a}: need 3 offset and 2 sensitivity coefficients")
+                coef[a] = (off, sen)
+        except (KeyError, TypeError, ValueError) as e:
+            raise LogError(f"{path}: bad model: {e}") from None
+        return cls(t0, coef)
+
+    def predict(self, log):
+        d = log.temp - self.t0
+        cols = []
+        for i, a in enumerate(AXES):
+            (o0, o1, o2), (s0, s1) = self.coef[a]
+            cols.append(o0 + o1 * d + o2 * d * d + (s0 + s1 * d) * log.ref[:, i])
+        return np.column_stack(cols)
+
+
+def base_columns(ctx, log, axis):
+    """Regressors of the fitted sim for one axis (scaled so the normal equations stay sane)."""
+    d = (log.temp - ctx.t0) / ctx.tscale
+    r = log.ref[:, axis] / ctx.ref_scale[axis]
+    return np.column_stack([np.ones_like(d), d, d * d, r, r * d])
