@@ -12,7 +12,7 @@ BOARD_TCP ?= 2323
 VBOARD := node tools/vboard/server.mjs
 PYTEST_ARGS ?=
 
-.PHONY: setup test demo bench mpy typecheck lint deploy clean board board-start board-stop
+.PHONY: setup test demo bench mpy typecheck lint deploy clean board board-start board-stop gap gap-check
 
 setup: $(VENV)/.stamp $(NODE_MODULES)/.stamp
 
@@ -40,6 +40,16 @@ demo: setup
 
 bench: setup
 	$(PY) -m tools.bench
+
+# Sim-to-real gap diagnosis of a log (see README): make gap LOG=train.csv [WITHHELD=held.csv]
+gap: setup
+	@test -n "$(LOG)" || { echo "usage: make gap LOG=train.csv [WITHHELD=held.csv]"; exit 2; }
+	@mkdir -p out
+	$(PY) -m tools.simgap $(LOG) $(if $(WITHHELD),--withheld $(WITHHELD)) --json out/gap.json --plot out/gap.png
+
+# The blind benchmark of the gap diagnosis: 27 generated cases with hidden labels
+gap-check: setup
+	$(PY) -m tools.gapcheck
 
 mpy: setup
 	$(PY) -m tools.build_mpy build/mpy

@@ -39,7 +39,9 @@ def _run(*args):
 @pytest.fixture(scope="module")
 def hyst_result(tmp_path_factory):
     d = tmp_path_factory.mktemp("gap")
-    eff = lambda t, T, r: 3 * (_play(T, 6.0) - T)
+    def eff(t, T, r):
+        return 3 * (_play(T, 6.0) - T)
+
     _write(d / "train.csv", make(eff, n=3000, seed=11))
     _write(d / "held.csv", make(eff, n=2000, seed=12))
     p = _run(d / "train.csv", "--withheld", d / "held.csv", "--json", d / "out.json",
@@ -120,7 +122,7 @@ def test_given_model_true_then_wrong(tmp_path):
 def test_malformed_csv_exit_code_and_message(tmp_path):
     _write(tmp_path / "t.csv", make(None, n=50, seed=15))
     lines = (tmp_path / "t.csv").read_text().splitlines()
-    k = next(i for i, l in enumerate(lines) if l.startswith("time_s")) + 10
+    k = next(i for i, ln in enumerate(lines) if ln.startswith("time_s")) + 10
     parts = lines[k].split(",")
     parts[2] = "1.2.3"
     lines[k] = ",".join(parts)

@@ -52,7 +52,9 @@ def summary(rows):
         L.append(f"{r['case']:<48} verdict={','.join(r['verdict']) or '-':<45} "
                  f"{'OK ' if r['attributed'] else 'MISS'} rms/floor {r['ratio_before']:.2f} -> "
                  f"{r['ratio']:.2f}{'' if r['shrink_ok'] else ' (over 1.25)'}")
-    frac = (lambda rs, k: f"{sum(r[k] for r in rs)}/{len(rs)}")
+    def frac(rs, k):
+        return f"{sum(r[k] for r in rs)}/{len(rs)}"
+
     L.append(f"single effect named first: {frac(singles, 'attributed')}")
     L.append(f"both effects of a pair in verdict: {frac(pairs, 'attributed')}")
     L.append(f"no-effect cases with nothing claimed: {frac(nones, 'attributed')} "

@@ -164,7 +164,9 @@ def make_log(rng, params, effects, n, kind, runs, outliers):
 
 
 def draw_params(rng):
-    sgn = lambda: rng.choice([-1.0, 1.0])
+    def sgn():
+        return rng.choice([-1.0, 1.0])
+
     p = {
         "offset": [(rng.uniform(-200, 200), sgn() * rng.uniform(3, 8), sgn() * rng.uniform(0.01, 0.03))
                    for _ in range(3)],

@@ -40,7 +40,9 @@ class Log:
 
     def subset(self, idx):
         """Rows idx (bool mask or index array) as a new Log, optional columns kept."""
-        pick = (lambda a: None if a is None else a[idx])
+        def pick(a):
+            return None if a is None else a[idx]
+
         return Log(self.name, self.t[idx], self.temp[idx], self.out[idx], self.ref[idx],
                    dict(self.meta), pick(self.supply), pick(self.acc), pick(self.chamber),
                    pick(self.run))
@@ -111,7 +113,9 @@ def read_log(path, text=None):
         raise LogError(f"{name}: line {header_line + 1 + k}, column {col['time_s'] + 1} "
                        f"(time_s): time goes backwards (give a 'run' column if the file "
                        f"holds several runs)")
-    stack = (lambda cs: np.column_stack([arr[c] for c in cs]))
+    def stack(cs):
+        return np.column_stack([arr[c] for c in cs])
+
     acc_cols = ("acc_x", "acc_y", "acc_z")
     have_acc = [c in arr for c in acc_cols]
     if any(have_acc) and not all(have_acc):

@@ -54,7 +54,9 @@ def temp_rate(log, window_s=None):
         # Running sums give every window's slope in O(n).
         lo = np.searchsorted(ts, ts - window_s / 2)
         hi = np.searchsorted(ts, ts + window_s / 2, side="right")
-        c = lambda v: np.r_[0.0, np.cumsum(v)]
+        def c(v):
+            return np.r_[0.0, np.cumsum(v)]
+
         t0 = ts[0]
         S1, St, ST = c(np.ones_like(ts)), c(ts - t0), c(Ts)
         Stt, StT = c((ts - t0) ** 2), c((ts - t0) * Ts)

@@ -49,6 +49,7 @@ def plot(res, extras, path):
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+
     from . import prep
 
     prob = extras["prob"]
