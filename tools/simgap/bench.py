@@ -7,12 +7,13 @@ import tempfile
 import time
 
 
-def main():
+def measure(n=None):
+    """(rows, read seconds, diagnose seconds, verdict) for an n-row log + n-row withheld log."""
     from tools import gapgen
     from tools.simgap.diagnose import diagnose
     from tools.simgap.logio import read_log
 
-    n = int(os.environ.get("BENCH_ROWS", "20000"))
+    n = n or int(os.environ.get("BENCH_ROWS", "20000"))
     with tempfile.TemporaryDirectory() as d:
         tr, wh = gapgen.make_case(("hysteresis", "drift"), 42, n_train=n, n_withheld=n)
         tp, wp = os.path.join(d, "t.csv"), os.path.join(d, "w.csv")
@@ -23,6 +24,13 @@ def main():
         t1 = time.perf_counter()
         res, _ = diagnose(train, held)
         t2 = time.perf_counter()
+    return n, t1 - t0, t2 - t1, res["verdict"]
+
+
+def main():
+    n, read_s, diag_s, verdict = measure()
+    t0, t1, t2 = 0.0, read_s, read_s + diag_s
+    res = {"verdict": verdict}
     print(f"simgap bench: {n}-row log + {n}-row withheld log: read {t1 - t0:.2f} s, "
           f"diagnose {t2 - t1:.2f} s, total {t2 - t0:.2f} s (target < 5 s on one core); "
           f"verdict {', '.join(res['verdict']) or '-'}")
