@@ -1,4 +1,9 @@
-"""The README's REPL examples work as written, on CPython and in the MicroPython VM."""
+"""The README's examples work as written.
+
+Blocks copied from a docs page carry `<!-- from docs/X.md -->` and must stand verbatim in that
+page, whose own tests run them (against the simulated parts where they need hardware). The other
+Python blocks with `>>>` run here as doctests on CPython, and in the MicroPython VM.
+"""
 
 import doctest
 import os
@@ -8,37 +13,42 @@ import mpvm as vm
 
 from tools import build_mpy
 
-README = os.path.join(build_mpy.REPO, "README.md")
+REPO = build_mpy.REPO
+README = os.path.join(REPO, "README.md")
+BLOCK = re.compile(r"(?:<!-- from (docs/[\w./-]+) -->\n)?(```[a-z]*\n(.*?)```)", re.S)
 
 
-def repl_blocks(path=README):
-    """Each ```python block made of >>> lines, as runnable source."""
-    text = open(path).read()
-    out = []
-    for block in re.findall(r"```python\n(.*?)```", text, re.S):
-        lines = [ln[4:] for ln in block.splitlines() if ln.startswith(">>> ") or ln.startswith("... ")]
-        if lines:
-            out.append("\n".join(re.sub(r"\s+#.*$", "", ln) for ln in lines) + "\n")
-    return out
+def blocks():
+    """(source docs page or None, fenced block, block body) for every block in the README."""
+    return [(m.group(1), m.group(2), m.group(3)) for m in BLOCK.finditer(open(README).read())]
+
+
+def own_repl_blocks():
+    return [body for src, fenced, body in blocks() if src is None and fenced.startswith("```python") and ">>> " in body]
 
 
 def test_readme_has_repl_examples():
-    assert repl_blocks()
+    assert own_repl_blocks()
+    assert any(src for src, _, _ in blocks())
+
+
+def test_copied_blocks_stand_verbatim_in_their_tested_docs_page():
+    for src, fenced, _ in blocks():
+        if src is None:
+            continue
+        page = open(os.path.join(REPO, src)).read()
+        assert fenced in page, "README block marked as from %s differs from it:\n%s" % (src, fenced)
 
 
 def test_readme_repl_examples_run_on_cpython_with_the_shown_output():
-    text = open(README).read()
-    for i, block in enumerate(re.findall(r"```python\n(.*?)```", text, re.S)):
-        if ">>> " not in block or "tempcomp_board" in block:
-            continue
-        test = doctest.DocTestParser().get_doctest(block, {}, "README block %d" % i, README, 0)
+    for i, body in enumerate(own_repl_blocks()):
+        test = doctest.DocTestParser().get_doctest(body, {}, "README block %d" % i, README, 0)
         runner = doctest.DocTestRunner(optionflags=doctest.NORMALIZE_WHITESPACE)
         runner.run(test)
         assert runner.failures == 0, "README block %d does not give the output it shows" % i
 
 
 def test_readme_repl_examples_run_in_the_vm():
-    for src in repl_blocks():
-        if "tempcomp_board" in src or "import board" in src:
-            continue  # needs real hardware or the virtual board
-        vm.run(src)
+    for body in own_repl_blocks():
+        src = "\n".join(ln[4:] for ln in body.splitlines() if ln.startswith((">>> ", "... ")))
+        vm.run(src + "\n")
