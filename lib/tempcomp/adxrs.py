@@ -29,7 +29,7 @@ vt_lo == vt_hi marks a single-point calibration.
 """
 
 from tempcomp import record
-from tempcomp.fixedpoint import CLAMP, Compensator, quadratic_through, shift_basis
+from tempcomp.fixedpoint import CLAMP, Compensator, poly_value, quadratic_through, shift_basis
 
 _FULL = 65535  # read_u16 / AnalogIn.value full scale
 
@@ -129,7 +129,7 @@ class AnalogGyro:
             lo = int(span[0] / q)
             hi = int(span[1] / q) + 1
             t_cal = (max(lo, 0), min(hi, _FULL))
-            vals = [_poly(sc, c - ref / q) for c in (t_cal[0], t_cal[1], (t_cal[0] + t_cal[1]) // 2)]
+            vals = [poly_value(sc, c - ref / q) for c in (t_cal[0], t_cal[1], (t_cal[0] + t_cal[1]) // 2)]
         sign = 1
         raw_range = (0, _FULL)
         if max(vals) < 0:
@@ -204,11 +204,3 @@ def _pow(x, k):
         v *= x
     return v
 
-
-def _poly(c, u):
-    v = 0.0
-    i = len(c) - 1
-    while i >= 0:
-        v = v * u + c[i]
-        i -= 1
-    return v

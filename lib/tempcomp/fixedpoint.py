@@ -137,7 +137,8 @@ def shift_basis(coeffs, old_ref, new_ref):
     return out
 
 
-def _poly_value(coeffs, u):
+def poly_value(coeffs, u):
+    """Float value of sum coeffs[k] * u**k (set-up and checks; allocates)."""
     v = 0.0
     i = len(coeffs) - 1
     while i >= 0:
@@ -163,7 +164,7 @@ def _extrema(coeffs, lo, hi):
                 sq = disc**0.5
                 pts.append((-b + sq) / (2.0 * a))
                 pts.append((-b - sq) / (2.0 * a))
-    vals = [_poly_value(coeffs, p) for p in pts if lo <= p <= hi]
+    vals = [poly_value(coeffs, p) for p in pts if lo <= p <= hi]
     return min(vals), max(vals)
 
 
