@@ -77,7 +77,7 @@ class Greedy:
         withheld improvement over the current state."""
         e = next(x for x in EFFECTS if x.name == name)
         best = None
-        for shape in e.shapes(self.prob.ctx):
+        for shape in e.shapes_given(self.prob.ctx, self.state[axis]):
             res = self.prob.evaluate(axis, self.state[axis] + [(name, shape)], withheld=False)
             ss = float(np.sum(res["cv"] ** 2))
             if best is None or ss < best[0]:
@@ -150,7 +150,8 @@ class Greedy:
                 for i, (name, shape) in enumerate(list(self.state[a])):
                     e = next(x for x in EFFECTS if x.name == name)
                     best = None
-                    for sh in e.shapes(self.prob.ctx):
+                    others = self.state[a][:i] + self.state[a][i + 1:]
+                    for sh in e.shapes_given(self.prob.ctx, others):
                         blocks = list(self.state[a])
                         blocks[i] = (name, sh)
                         res = self.prob.evaluate(a, blocks, withheld=False)
