@@ -48,6 +48,17 @@ def block_t(d, nblocks=40):
     return float(means.mean() / (s / np.sqrt(B)))
 
 
+def _same_shape(a, b):
+    """Shapes are None, numbers, strings or tuples of them; a width and a (width, lag) pair
+    must compare unequal rather than broadcast."""
+    if isinstance(a, tuple) or isinstance(b, tuple):
+        return (isinstance(a, tuple) and isinstance(b, tuple) and len(a) == len(b)
+                and all(_same_shape(x, y) for x, y in zip(a, b)))
+    if a is None or b is None or isinstance(a, str) or isinstance(b, str):
+        return a == b
+    return float(a) == float(b)
+
+
 class Greedy:
     def __init__(self, prob, sigma):
         self.prob = prob
@@ -158,7 +169,7 @@ class Greedy:
                         ss = float(np.sum(res["cv"] ** 2))
                         if best is None or ss < best[0]:
                             best = (ss, sh)
-                    if best[1] != shape:
+                    if not _same_shape(best[1], shape):
                         self.state[a][i] = (name, best[1])
                         changed = True
                 if not changed:
