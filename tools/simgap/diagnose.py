@@ -104,8 +104,10 @@ def diagnose(train, withheld=None, model=None):
 
 
 def _shape_str(s):
-    if isinstance(s, tuple):
+    if isinstance(s, tuple) and isinstance(s[0], str):
         return f"{s[0]} tau={s[1]:.4g}s"
+    if isinstance(s, tuple):   # hysteresis on a lagged temperature: (width, lag)
+        return f"{float(s[0]):.4g} on lag tau={float(s[1]):.4g}s"
     if isinstance(s, float):
         return f"{s:.4g}"
     return str(s)

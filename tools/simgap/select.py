@@ -48,6 +48,17 @@ def block_t(d, nblocks=40):
     return float(means.mean() / (s / np.sqrt(B)))
 
 
+def _same_shape(a, b):
+    """Shapes are None, numbers, strings or tuples of them; a width and a (width, lag) pair
+    must compare unequal rather than broadcast."""
+    if isinstance(a, tuple) or isinstance(b, tuple):
+        return (isinstance(a, tuple) and isinstance(b, tuple) and len(a) == len(b)
+                and all(_same_shape(x, y) for x, y in zip(a, b)))
+    if a is None or b is None or isinstance(a, str) or isinstance(b, str):
+        return a == b
+    return float(a) == float(b)
+
+
 class Greedy:
     def __init__(self, prob, sigma):
         self.prob = prob
@@ -77,7 +88,7 @@ class Greedy:
         withheld improvement over the current state."""
         e = next(x for x in EFFECTS if x.name == name)
         best = None
-        for shape in e.shapes(self.prob.ctx):
+        for shape in e.shapes_given(self.prob.ctx, self.state[axis]):
             res = self.prob.evaluate(axis, self.state[axis] + [(name, shape)], withheld=False)
             ss = float(np.sum(res["cv"] ** 2))
             if best is None or ss < best[0]:
@@ -150,14 +161,15 @@ class Greedy:
                 for i, (name, shape) in enumerate(list(self.state[a])):
                     e = next(x for x in EFFECTS if x.name == name)
                     best = None
-                    for sh in e.shapes(self.prob.ctx):
+                    others = self.state[a][:i] + self.state[a][i + 1:]
+                    for sh in e.shapes_given(self.prob.ctx, others):
                         blocks = list(self.state[a])
                         blocks[i] = (name, sh)
                         res = self.prob.evaluate(a, blocks, withheld=False)
                         ss = float(np.sum(res["cv"] ** 2))
                         if best is None or ss < best[0]:
                             best = (ss, sh)
-                    if best[1] != shape:
+                    if not _same_shape(best[1], shape):
                         self.state[a][i] = (name, best[1])
                         changed = True
                 if not changed:
