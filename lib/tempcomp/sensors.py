@@ -45,12 +45,12 @@ class Sensors:
 
     def __init__(self, board):
         self.board = board
-        self.mlx = None
-        self.mpu = None
-        self.adxrs = None
-        self.model = None  # the MPU's BiasModel once calibrated or restored
-        self.missing = {}
-        self.restored = []
+        self.mlx = None  # type: MLX90609 | None
+        self.mpu = None  # type: MPU6xxx | None
+        self.adxrs = None  # type: AnalogGyro | None
+        self.model = None  # type: BiasModel | None  # the MPU's offset(T), once calibrated or restored
+        self.missing = {}  # type: dict
+        self.restored = []  # type: list
         self.adxrs_mv_per_dps = float(getattr(board, "ADXRS_MV_PER_DPS", 6.0))
         self._buf = [0] * 7
 
@@ -62,8 +62,9 @@ class Sensors:
         """Board temperature, degC (float): the MPU's sensor, else the MLX90609's TEMPOUT."""
         if self.mpu is not None:
             return self.mpu.temp_c100() / 100.0
-        if self.mlx is not None and self.mlx.table is not None:
-            return mlx_degc(self.mlx.table.tc, self.mlx.tempout_mv())
+        mlx = self.mlx
+        if mlx is not None and mlx.table is not None:
+            return mlx_degc(mlx.table.tc, mlx.tempout_mv())
         return None
 
     def read(self, n=16):
@@ -73,36 +74,37 @@ class Sensors:
         with its offset registers at zero, the MLX90609's code against its nominal 2.5 V
         zero and scale, the analog gyro's voltage against the datasheet null and scale.
         """
-        out = {"temp_c": self.temp_c()}
-        if self.mpu is not None:
+        out = {"temp_c": self.temp_c()}  # type: dict
+        mpu = self.mpu
+        if mpu is not None:
             # compensated: offset(T) in software when a BiasModel is in use, else the output
             # with the calibrated offset registers (room-temperature calibration only)
             b = self._buf
-            comp = [0, 0, 0]
+            comp = [0.0, 0.0, 0.0]
             raw = [0, 0, 0]
-            regs = self.mpu.offsets()[0]
+            regs = mpu.offsets()[0]
             tc = self.model is not None
             for _ in range(n):
                 if tc:
-                    self.mpu.read_compensated(b)
+                    mpu.read_compensated(b)
                     for k in range(3):
                         comp[k] += b[3 + k]
-                self.mpu.read_raw(b)
+                mpu.read_raw(b)
                 for k in range(3):
                     if not tc:
                         comp[k] += b[4 + k] * 1000 / _GYRO_LSB_DPS
                     raw[k] += b[4 + k] - _GYRO_REG_OUT * regs[k]
             for k in range(3):
                 out["mpu_g" + "xyz"[k]] = (comp[k] / (1000.0 * n), raw[k] / (_GYRO_LSB_DPS * n))
-        if self.mlx is not None and self.mlx.table is not None:
-            t = self.mlx.table
-            s0 = t.s0("digital")
+        mlx = self.mlx
+        if mlx is not None and mlx.table is not None:
+            s0 = mlx.table.s0("digital")
             zero = (2500 - 400) * 12 / 25.0  # the code of a 2.5 V output
             sc = sr = 0
             for _ in range(n):
-                sc += self.mlx.rate()
-                sr += self.mlx.rate_code()
-            out["mlx"] = (sc / (float(self.mlx.out_scale) * n), (sr / n - zero) / s0)
+                sc += mlx.rate()
+                sr += mlx.rate_code()
+            out["mlx"] = (sc / (float(mlx.out_scale) * n), (sr / n - zero) / s0)
         if self.adxrs is not None:
             a = self.adxrs
             sc = sr = 0
@@ -184,13 +186,15 @@ def restore(board, path=STORE_PATH, which=ALL, verbose=True):
     if s.mlx is not None and MLX in names:
         s.mlx.load(st, MLX)
         s.restored.append(MLX)
-    if s.mpu is not None:
+    mpu = s.mpu
+    if mpu is not None:
         if MPU in names:
-            s.mpu.restore(st, MPU)
+            mpu.restore(st, MPU)
             s.restored.append(MPU)
         if MPU_TC in names:
-            s.model = BiasModel.from_ints(st.load(MPU_TC))
-            s.mpu.compensate(s.model)
+            model = BiasModel.from_ints(st.load(MPU_TC))
+            mpu.compensate(model)
+            s.model = model
             s.restored.append(MPU_TC)
     if s.adxrs is not None and ADXRS in names:
         s.adxrs.load_record(st.load(ADXRS))

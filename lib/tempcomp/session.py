@@ -37,15 +37,19 @@ from tempcomp import sensors as _sensors
 from tempcomp.mpu6xxx_tc import BiasModel
 from tempcomp.store import Store
 
-try:
-    from time import ticks_diff, ticks_ms
-except ImportError:  # CPython
 
-    def ticks_ms():
-        return int(time.monotonic() * 1000)
+def _now_ms():
+    # time.ticks_ms on MicroPython; time.monotonic (CircuitPython, CPython) elsewhere
+    f = getattr(time, "ticks_ms", None)
+    if f is not None:
+        return f()
+    return int(time.monotonic() * 1000)  # pyright: ignore[reportAttributeAccessIssue]
 
-    def ticks_diff(a, b):
-        return a - b
+
+def _since_ms(t0):
+    # ticks_diff keeps differences right across the ticks_ms wrap-around
+    d = getattr(time, "ticks_diff", None)
+    return d(_now_ms(), t0) if d is not None else _now_ms() - t0
 
 
 _BAR = 20
@@ -75,15 +79,15 @@ class Progress:
     def __init__(self, label, total):
         self.label = label
         self.total = total
-        self.t0 = ticks_ms()
+        self.t0 = _now_ms()
         self._shown = -_SHOW_MS
         self.show(0)
 
     def elapsed_s(self):
-        return ticks_diff(ticks_ms(), self.t0) / 1000.0
+        return _since_ms(self.t0) / 1000.0
 
     def show(self, done, extra="", force=False):
-        now = ticks_diff(ticks_ms(), self.t0)
+        now = _since_ms(self.t0)
         if not force and now - self._shown < _SHOW_MS:
             return
         self._shown = now
@@ -128,8 +132,8 @@ class Session:
         self.samples = samples
         self.max_tries = max_tries
         self.max_bias_dps = max_bias_dps
-        self.s = None
-        self.result = {}
+        self.s = _sensors.Sensors(board)  # the parts, found when run() starts
+        self.result = {}  # type: dict
 
     # ---- talking to the user ------------------------------------------------------------
     def ask(self, prompt, default=""):
@@ -176,8 +180,7 @@ class Session:
             print("  redo:")
 
     # ---- captures ---------------------------------------------------------------------------
-    def _mpu_calibrate(self):
-        mpu = self.s.mpu
+    def _mpu_calibrate(self, mpu):
         before = mpu.offsets()
         p = Progress("MPU-6xxx  ", self.packets)
         regs = mpu.calibrate(packets=self.packets)
@@ -193,15 +196,14 @@ class Session:
                     % ("xyz"[k], dps, self.max_bias_dps))
         return regs
 
-    def _mpu_point(self):
+    def _mpu_point(self, mpu):
         p = Progress("MPU-6xxx  ", self.packets)
-        pt = self.s.mpu.bias_point(packets=self.packets)
+        pt = mpu.bias_point(packets=self.packets)
         p.done(self.packets)
         return pt
 
-    def _mlx_capture(self, limit_dps=5):
+    def _mlx_capture(self, g, s0, limit_dps=5):
         # ZRO at rest with the motion and saturation checks rezero() does not make
-        g = self.s.mlx
         n = self.samples
         p = Progress("MLX90609  ", n)
         st = so = 0
@@ -217,7 +219,6 @@ class Session:
                 raise CaptureError("MLX90609 rate output saturated (ADC code %d): not at rest?" % c)
             p.show(i + 1)
         p.done(n)
-        s0 = g.table.s0("digital")
         spread = (hi - lo) / s0
         if spread > limit_dps:
             raise CaptureError(
@@ -225,8 +226,7 @@ class Session:
                 "keep it still" % (spread, limit_dps))
         return st / n, so / n
 
-    def _adxrs_capture(self, limit_dps=5):
-        g = self.s.adxrs
+    def _adxrs_capture(self, g, limit_dps=5):
         n = self.samples
         p = Progress("analog    ", n)
         st = sr = 0
@@ -255,17 +255,22 @@ class Session:
         s = self.s
         out = {}
         if s.mpu is not None:
-            out["mpu"] = self._mpu_calibrate()
-        if s.mlx is not None and s.mlx.table is not None:
-            t, code = self._mlx_capture()
+            out["mpu"] = self._mpu_calibrate(s.mpu)
+        mlx = s.mlx
+        table = mlx.table if mlx is not None else None
+        if mlx is not None and table is not None:
+            t, code = self._mlx_capture(mlx, table.s0("digital"))
             # the re-zero rezero() would make (LSB), applied now; saved at the end
-            out["mlx"] = d = code - s.mlx.zro_at(t)
-            s.mlx.use_table(s.mlx.table, s.mlx.zro_shift + d)
+            out["mlx"] = d = code - mlx.zro_at(t)
+            mlx.use_table(table, mlx.zro_shift + d)
         return out
 
     def _face(self):
-        t, gy, ac = self._mpu_point()
-        g, a = self.s.mpu.offsets()
+        mpu = self.s.mpu
+        if mpu is None:
+            return None
+        t, gy, ac = self._mpu_point(mpu)
+        g, a = mpu.offsets()
         return ([(gy[k] - g[k]) / _GYRO_REG_DPS for k in range(3)],
                 [(ac[k] - (a[k] & ~1)) * _ACCEL_WORD_MG for k in range(3)])
 
@@ -273,24 +278,27 @@ class Session:
         s = self.s
         pt = {"temp_c": s.temp_c()}
         if s.mpu is not None:
-            pt["mpu"] = self._mpu_point()
+            pt["mpu"] = self._mpu_point(s.mpu)
         if s.adxrs is not None:
-            pt["adxrs"] = self._adxrs_capture()
-        if s.mlx is not None and s.mlx.table is not None:
+            pt["adxrs"] = self._adxrs_capture(s.adxrs)
+        mlx = s.mlx
+        if mlx is not None and mlx.table is not None:
             n = self.samples
             acc = 0
             for _ in range(n):
-                acc += s.mlx.rate()
-            pt["mlx_residual"] = acc / (float(s.mlx.out_scale) * n)
+                acc += mlx.rate()
+            pt["mlx_residual"] = acc / (float(mlx.out_scale) * n)
         return pt
 
     def _wait_for_change(self, taken):
         # None when the temperature moved step_c away from every point taken; else the reply
-        t0 = ticks_ms()
+        t0 = _now_ms()
         while True:
             t = self.s.temp_c()
+            if t is None:
+                return "s"
             d = min(abs(t - x["temp_c"]) for x in taken)
-            el = ticks_diff(ticks_ms(), t0) / 1000.0
+            el = _since_ms(t0) / 1000.0
             n = int(_BAR * min(d, self.step_c) / self.step_c)
             print("\r  %.2f degC, %.2f from the nearest point (need %.1f) [%s%s] %5.1f s   " % (
                 t, d, self.step_c, "#" * n, "." * (_BAR - n), el), end="")
@@ -303,7 +311,7 @@ class Session:
                              % (self.step_c, self.wait_s, len(taken)), "s")
                 if a != "w":
                     return a
-                t0 = ticks_ms()
+                t0 = _now_ms()
             time.sleep(0.2)
 
     def _warm(self):
@@ -329,8 +337,7 @@ class Session:
         return taken
 
     # ---- fitting and saving -------------------------------------------------------------------
-    def _fit_adxrs(self, pts):
-        g = self.s.adxrs
+    def _fit_adxrs(self, g, pts):
         sc = self.s.adxrs_mv_per_dps
         p = sorted(x["adxrs"] for x in pts)
         if len(p) >= 3:
@@ -353,32 +360,34 @@ class Session:
             raise OSError("no sensor answered: check the wiring and the board module")
         print("  found: %s" % ", ".join(s.found()))
         r = self.result
-        if s.mlx is not None:
-            h = s.mlx.health()
-            t = s.mlx.table
+        mlx = s.mlx
+        if mlx is not None:
+            h = mlx.health()
+            t = mlx.table
             if t is None:
-                print("  MLX90609: %s" % (s.mlx._table_error,))
+                print("  MLX90609: no look-up table (VERSION 0 or damaged EEPROM); not calibrated here")
             else:
-                print("  MLX90609 EEPROM: VERSION %d, %d deg/s full scale, TC %d/%d/%d mV, "
-                      "%d voted bits disagree%s" % (t.version, t.full_scale_dps, t.tc[0], t.tc[1], t.tc[2],
-                                                    h["vote_disagreements"],
-                                                    " (EEPROM degrading!)" if h["vote_disagreements"] else " (healthy)"))
-        if s.mpu is not None:
-            print("  %s at I2C 0x%02x, %.2f degC" % (s.mpu.part, s.mpu.address, s.temp_c()))
+                d = h["vote_disagreements"]
+                print("  MLX90609 EEPROM: VERSION %d, %d deg/s full scale, TC %d/%d/%d mV, %d voted bits "
+                      "disagree (%s)" % (t.version, t.full_scale_dps, t.tc[0], t.tc[1], t.tc[2], d,
+                                         "EEPROM degrading!" if d else "healthy"))
+        mpu = s.mpu
+        if mpu is not None:
+            print("  %s at I2C 0x%02x, %.2f degC" % (mpu.part, mpu.address, mpu.temp_c100() / 100.0))
         try:
             still = None
-            if s.mpu is not None or s.mlx is not None:
+            if mpu is not None or mlx is not None:
                 still = self._step("still", "Zero at rest",
                                    "Lay the board flat, component side (+z) up, and keep it still.",
                                    self._still)
             if still:
                 r.update(still)
-            if s.mpu is not None and still and "mpu" in still:
+            if mpu is not None and still and "mpu" in still:
                 res = self._step("face:+x", "Check on another face",
                                  "Turn the board so its +x edge points up, and keep it still.", self._face)
                 if res is not None:
                     r["residual"] = res
-            if s.mpu is not None or s.adxrs is not None:
+            if mpu is not None or s.adxrs is not None:
                 r["points"] = self._warm()
         except Aborted as e:
             print()
@@ -396,19 +405,21 @@ class Session:
         if s.mlx is not None and "mlx" in r:
             s.mlx.save(st, _sensors.MLX)
             saved.append(_sensors.MLX)
-        if s.mpu is not None and "mpu" in r:
-            s.mpu.save(st, _sensors.MPU)
+        mpu = s.mpu
+        if mpu is not None and "mpu" in r:
+            mpu.save(st, _sensors.MPU)
             saved.append(_sensors.MPU)
         pts = r.get("points") or []
         mpts = [x["mpu"] for x in pts if "mpu" in x]
-        if s.mpu is not None and mpts:
-            s.model = BiasModel(mpts)
-            s.mpu.compensate(s.model)
-            st.save(_sensors.MPU_TC, s.model.to_ints())
+        if mpu is not None and mpts:
+            model = BiasModel(mpts)
+            mpu.compensate(model)
+            s.model = model
+            st.save(_sensors.MPU_TC, model.to_ints())
             saved.append(_sensors.MPU_TC)
         apts = [x for x in pts if "adxrs" in x]
         if s.adxrs is not None and apts:
-            self._fit_adxrs(apts)
+            self._fit_adxrs(s.adxrs, apts)
             st.save(_sensors.ADXRS, s.adxrs.to_record())
             saved.append(_sensors.ADXRS)
         r["saved"] = saved
@@ -418,17 +429,20 @@ class Session:
         r = self.result
         print()
         print("== Result ==")
-        if "mlx" in r:
-            h = s.mlx.health()
+        mlx = s.mlx
+        table = mlx.table if mlx is not None else None
+        if mlx is not None and table is not None and "mlx" in r:
+            h = mlx.health()
             print("MLX90609: re-zero %+.2f LSB (%+.3f deg/s); EEPROM: %d voted bits disagree, %d refusals" % (
-                s.mlx.zro_shift, s.mlx.zro_shift / s.mlx.table.s0("digital"), h["vote_disagreements"],
-                h["refusals"]))
-        if "mpu" in r:
+                mlx.zro_shift, mlx.zro_shift / table.s0("digital"), h["vote_disagreements"], h["refusals"]))
+        mpu = s.mpu
+        if mpu is not None and "mpu" in r:
             g, a = r["mpu"]
+            f = mpu.factory
             print("%s gyro bias x/y/z: %+.3f %+.3f %+.3f deg/s (offset registers %d %d %d)" % (
-                s.mpu.part, -g[0] / _GYRO_REG_DPS, -g[1] / _GYRO_REG_DPS, -g[2] / _GYRO_REG_DPS, g[0], g[1], g[2]))
+                mpu.part, -g[0] / _GYRO_REG_DPS, -g[1] / _GYRO_REG_DPS, -g[2] / _GYRO_REG_DPS, g[0], g[1], g[2]))
             print("%s accel offsets x/y/z: %d %d %d (factory %d %d %d)" % (
-                s.mpu.part, a[0], a[1], a[2], s.mpu.factory[0], s.mpu.factory[1], s.mpu.factory[2]))
+                mpu.part, a[0], a[1], a[2], f[0], f[1], f[2]))
         if "residual" in r:
             g, a = r["residual"]
             print("residual on the +x face: gyro %+.3f %+.3f %+.3f deg/s, accel %+.1f %+.1f %+.1f mg" % (
