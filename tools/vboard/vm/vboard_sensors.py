@@ -13,6 +13,7 @@
 #     vboard_sensors.world.place("-x")          # lay the board with -x up
 #     vboard_sensors.world.spin((0, 0, 10.0))   # a turntable at 10 deg/s about z
 #     vboard_sensors.world.bump(after_ms=50)    # knock it for a second
+#     vboard_sensors.world.heat([(0, 20), (30, 50)])  # warm it from 20 to 50 degC in 30 s
 #
 # Time: temperature and motion follow board.clock_ms().  The MPU-6500 model's
 # sample clock runs on its own bus traffic (9 clocks a byte at 400 kHz), so a
@@ -95,6 +96,11 @@ class World:
             if t >= b[1]:
                 self._bump = None
         return self.rate
+
+    def heat(self, points):
+        """Start a temperature programme now (a heater, a chamber): [(s from now, degC), ...]."""
+        now = self.board.clock_ms() / 1000.0
+        self.board.set_profile([(now + s, c) for s, c in points])
 
     def temperature_c(self):
         return self.board.temperature_c()
