@@ -169,7 +169,7 @@ def errors(rows, virtual):
     return out
 
 
-def plot(errs, path, title):
+def plot(errs, path, title, span=None):
     import matplotlib
 
     matplotlib.use("Agg")
@@ -180,6 +180,9 @@ def plot(errs, path, title):
     for ax, key in zip(axes[:, 0], keys):
         ts, raw, comp = errs[key]
         ax.axhline(0, color="0.6", lw=0.8)
+        if span:
+            ax.axvspan(span[0], span[1], color="tab:green", alpha=0.08,
+                       label="between the session's temperature points")
         ax.plot(ts, raw, ".", ms=3, color="tab:orange",
                 label="uncompensated (worst %.2f deg/s)" % max(abs(v) for v in raw))
         ax.plot(ts, comp, ".", ms=3, color="tab:blue",
@@ -284,6 +287,8 @@ def main(argv=None):
         else:
             code = SESSION_REAL
         out = live.run(code, timeout=600)
+        temps = [float(line.split()[2]) for line in out.splitlines() if line.strip().startswith("point at ")]
+        span = (min(temps), max(temps)) if len(temps) > 1 else None
         redo = out.count("redo:")
         done.append("ran the calibration session (%d redo%s after a bad capture)" % (redo, "" if redo == 1 else "s"))
 
@@ -333,7 +338,7 @@ def main(argv=None):
         table(errs)
         title = ("tempcomp on the virtual board: rate error vs temperature (turntable %g deg/s)" % SPIN_DPS
                  if virtual else "tempcomp on %s: rate error at rest" % board)
-        plot(errs, png, title)
+        plot(errs, png, title, span)
         say("plot: %s" % os.path.relpath(png, REPO))
         done.append("streamed %d readings%s; plot of raw vs compensated error: %s"
                     % (len(rows), " through %g..48 degC" % ROOM_C if virtual else "", os.path.relpath(png, REPO)))
