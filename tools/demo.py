@@ -182,7 +182,7 @@ def plot(errs, path, title, span=None):
         ax.axhline(0, color="0.6", lw=0.8)
         if span:
             ax.axvspan(span[0], span[1], color="tab:green", alpha=0.08,
-                       label="between the session's temperature points")
+                       label="calibrated span (the session's temperature points)")
         ax.plot(ts, raw, ".", ms=3, color="tab:orange",
                 label="uncompensated (worst %.2f deg/s)" % max(abs(v) for v in raw))
         ax.plot(ts, comp, ".", ms=3, color="tab:blue",
@@ -199,12 +199,15 @@ def plot(errs, path, title, span=None):
     plt.close(fig)
 
 
-def table(errs):
-    say("%-28s %22s %22s" % ("sensor", "uncompensated: worst", "tempcomp: worst"))
+def table(errs, span=None):
+    say("%-28s %20s %20s %20s" % ("sensor", "uncompensated", "tempcomp", "tempcomp in span"))
     for key, name in SENSORS:
         if key in errs:
-            _, raw, comp = errs[key]
-            say("%-28s %17.3f deg/s %17.3f deg/s" % (name, max(abs(v) for v in raw), max(abs(v) for v in comp)))
+            ts, raw, comp = errs[key]
+            inside = [abs(c) for t, c in zip(ts, comp) if span and span[0] <= t <= span[1]]
+            say("%-28s %14.3f deg/s %14.3f deg/s %14s" % (
+                name, max(abs(v) for v in raw), max(abs(v) for v in comp),
+                "%.3f deg/s" % max(inside) if inside else "--"))
 
 
 def data_dir():
@@ -334,8 +337,10 @@ def main(argv=None):
             say("%7.1f %7.2f | %s" % (t, temp, " | ".join(cells)))
         errs = errors(rows, virtual)
         say()
-        say("error against the true rate (%g deg/s about z), %d readings:" % (truth("mlx", virtual), len(rows)))
-        table(errs)
+        say("worst error against the true rate (%g deg/s about z), %d readings%s:" % (
+            truth("mlx", virtual), len(rows),
+            "; span = %.1f..%.1f degC, between the session's points" % span if span else ""))
+        table(errs, span)
         title = ("tempcomp on the virtual board: rate error vs temperature (turntable %g deg/s)" % SPIN_DPS
                  if virtual else "tempcomp on %s: rate error at rest" % board)
         plot(errs, png, title, span)
