@@ -16,6 +16,7 @@ A VirtualBoard owns its node process (its own flash directory and pid file, a fr
 one is given) and stops it by pid, never by name.
 """
 
+import codecs
 import os
 import shutil
 import signal
@@ -120,20 +121,23 @@ class Remote:
             err = r.stderr
             code = r.returncode
         else:
-            p = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=REPO)
+            # bytes, not text mode: universal newlines would turn a progress bar's \r into \n
+            p = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, cwd=REPO)
             timer = threading.Timer(timeout, p.kill)
             timer.start()
             chunks = []
+            dec = codecs.getincrementaldecoder("utf-8")("replace")
             try:
                 assert p.stdout is not None
                 while True:
-                    c = p.stdout.read(1)
-                    if not c:
+                    b = p.stdout.read(1)
+                    if not b:
                         break
-                    chunks.append(c)
-                    self.echo(c)
+                    for c in dec.decode(b):
+                        chunks.append(c)
+                        self.echo(c)
                 code = p.wait()
-                err = p.stderr.read() if p.stderr else ""
+                err = p.stderr.read().decode("utf-8", "replace") if p.stderr else ""
             finally:
                 timer.cancel()
             out = "".join(chunks)

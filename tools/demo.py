@@ -120,11 +120,12 @@ def header(n, text):
 
 
 class Echo:
-    """Pass the board's output through; progress lines (\\r) only to a terminal."""
+    """Pass the board's output through; progress bars (a bare \r) redraw only on a terminal."""
 
     def __init__(self):
         self.tty = sys.stdout.isatty()
         self.line = ""
+        self.cr = False
 
     def __call__(self, c):
         if self.tty:
@@ -132,13 +133,19 @@ class Echo:
             if c == "\n":
                 sys.stdout.flush()
             return
-        if c == "\r":
-            self.line = ""
-        elif c == "\n":
+        # a log keeps the last state of each progress line only
+        if c == "\n":
             if self.line.strip() and not self.line.startswith("ROW "):
                 sys.stdout.write(self.line.rstrip() + "\n")
                 sys.stdout.flush()
             self.line = ""
+            self.cr = False
+            return
+        if self.cr:
+            self.line = ""
+            self.cr = False
+        if c == "\r":
+            self.cr = True
         else:
             self.line += c
 
@@ -205,7 +212,7 @@ def table(errs, span=None):
         if key in errs:
             ts, raw, comp = errs[key]
             inside = [abs(c) for t, c in zip(ts, comp) if span and span[0] <= t <= span[1]]
-            say("%-28s %14.3f deg/s %14.3f deg/s %14s" % (
+            say("%-28s %14.3f deg/s %14.3f deg/s %20s" % (
                 name, max(abs(v) for v in raw), max(abs(v) for v in comp),
                 "%.3f deg/s" % max(inside) if inside else "--"))
 
