@@ -25,6 +25,28 @@ MLX90609_CS = 17
 
 ADC_RATE = 26
 ADC_TEMP = 27
+ADC_PINS = {"rate": ADC_RATE, "temp": ADC_TEMP}
+ADC_VREF_MV = 3300  # the simulated RP2040-style ADC: read_u16 full scale is 3.3 V
+ADC_DIVIDER = 2.0  # the 5 V analog gyro reaches the ADC through a 1:2 divider
+ADXRS_MV_PER_DPS = 6.0  # the analog gyro's nominal scale factor (ADXRS620: 6 mV per deg/s)
+
+
+def i2c():
+    return I2C(I2C_ID, sda=Pin(I2C_SDA), scl=Pin(I2C_SCL), freq=I2C_FREQ)
+
+
+def spi():
+    # MLX90609: SPI mode 3, at most 1 MHz (datasheet p.9)
+    return SPI(SPI_ID, baudrate=SPI_BAUD, polarity=1, phase=1, sck=Pin(SPI_SCK), mosi=Pin(SPI_MOSI),
+               miso=Pin(SPI_MISO))
+
+
+def mlx_cs():
+    return Pin(MLX90609_CS, Pin.OUT, value=1)
+
+
+def adc(name):
+    return ADC(Pin(ADC_PINS[name]))
 
 
 def setup():

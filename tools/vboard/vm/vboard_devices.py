@@ -22,14 +22,24 @@ ADC_TEMP = 27  # analog gyro temperature output
 PROFILE = [(0, 25.0), (20, 25.0), (60, 45.0), (80, 45.0), (120, 25.0)]
 
 
+def profile():
+    """The temperature profile: VBOARD_PROFILE ("s:degC,...") when the host set one."""
+    import vboard_config
+
+    text = getattr(vboard_config, "PROFILE", "")
+    if not text:
+        return PROFILE
+    pts = []
+    for item in text.split(","):
+        s, c = item.split(":")
+        pts.append((float(s), float(c)))
+    return pts
+
+
 def setup(board):
-    board.set_profile(PROFILE)
-    # Hook the simulated sensors in here, e.g.
-    #   from sim_mpu6500 import MPU6500
-    #   board.add_i2c(I2C_BUS, MPU6500_ADDR, MPU6500(board))
-    #   from sim_mlx90609 import MLX90609
-    #   board.add_spi(SPI_BUS, MLX90609_CS, MLX90609(board))
-    #   from sim_analog_gyro import AnalogGyro
-    #   gyro = AnalogGyro(board)
-    #   board.add_adc(ADC_RATE, gyro.rate_u16)
-    #   board.add_adc(ADC_TEMP, gyro.temp_u16)
+    board.set_profile(profile())
+    # The simulated MPU-6500, MLX90609 and analog gyro (tools/sim), moved by
+    # vboard_sensors.world: see that module for the parts' true properties.
+    import vboard_sensors
+
+    vboard_sensors.wire(board, I2C_BUS, MPU6500_ADDR, SPI_BUS, MLX90609_CS, ADC_RATE, ADC_TEMP)

@@ -105,6 +105,17 @@ class FlashVfs:
         return self._fs.remove(path)
 
     def rename(self, a, b):
+        # VfsPosix (MicroPython 1.27) builds both root-prefixed paths in one
+        # shared buffer, so with two absolute paths the second overwrites the
+        # first and rename("/x", "/y") fails with ENOENT: give it the target
+        # relative to the root instead.
+        if a.startswith("/") and b.startswith("/"):
+            cwd = self._fs.getcwd()
+            self._fs.chdir("/")
+            try:
+                return self._fs.rename(a, b[1:])
+            finally:
+                self._fs.chdir(cwd or "/")  # VfsPosix.getcwd() gives "" at its root
         return self._fs.rename(a, b)
 
     def chdir(self, path):

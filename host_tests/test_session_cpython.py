@@ -1,0 +1,60 @@
+"""tempcomp.session on CPython over the simulated buses: answers, skip, quit, no parts.
+
+The expected offsets come from the simulated part's bias (tools/sim), not from the session.
+"""
+
+import os
+import types
+
+import pytest
+
+from tempcomp.session import Aborted, Session, restore
+from tools.sim.analog_gyro_sim import AnalogGyroSim
+from tools.sim.buses import SimI2C
+from tools.sim.mlx90609_sim import MLX90609Sim, on_simspi
+from tools.sim.mpu6xxx_sim import MPU6xxxSim
+
+BIAS = (1.0, 2.0, -3.0)  # deg/s at 25 degC, no temperature dependence
+
+
+def board(with_parts=True):
+    mpu = MPU6xxxSim("MPU-6500", seed=3, gyro_bias_dps=BIAS)
+    spi, cs = on_simspi(MLX90609Sim(full_scale_dps=150))
+    a = AnalogGyroSim(divider=2.0)
+    devices = {0x68: mpu} if with_parts else {}
+    return types.SimpleNamespace(
+        i2c=lambda: SimI2C(devices), spi=lambda: spi, mlx_cs=lambda: cs, ADC_VREF_MV=3300, ADC_DIVIDER=2.0,
+        adc=lambda n: a.rate if n == "rate" else a.temp), mpu
+
+
+def test_scripted_session_saves_and_restore_reapplies(tmp_path, capsys):
+    b, sim = board()
+    path = str(tmp_path / "t.cal")
+    r = Session(b, store_path=path, answers=[], points=1, packets=200).run()
+    assert r["saved"] == ["mlx90609", "mpu6xxx", "mpu_tc", "adxrs"]
+    want = tuple(round(-v * 32.8) for v in BIAS)
+    assert all(abs(g - w) <= 1 for g, w in zip(sim.gyro_offsets(), want)), (sim.gyro_offsets(), want)
+    sim.power_cycle()
+    assert sim.gyro_offsets() == (0, 0, 0)
+    s = restore(b, path)
+    assert s.restored == ["mlx90609", "mpu6xxx", "mpu_tc", "adxrs"]
+    assert all(abs(g - w) <= 1 for g, w in zip(sim.gyro_offsets(), want))
+    assert "[####################] 100%" in capsys.readouterr().out
+
+
+def test_skip_and_quit(tmp_path):
+    b, sim = board()
+    path = str(tmp_path / "t.cal")
+    r = Session(b, store_path=path, which=("mpu6xxx",), answers=["s", "s", "s"], points=1).run()
+    assert r["saved"] == [] and sim.gyro_offsets() == (0, 0, 0)
+    with pytest.raises(Aborted):
+        Session(b, store_path=path, which=("mpu6xxx",), answers=["q"]).run()
+    assert not os.path.exists(path)
+
+
+def test_no_parts_is_a_clear_error(tmp_path):
+    b, _ = board(with_parts=False)
+    with pytest.raises(OSError, match="no sensor answered"):
+        Session(b, store_path=str(tmp_path / "t.cal"), which=("mpu6xxx",), answers=[]).run()
+    with pytest.raises(ValueError, match="points"):
+        Session(b, points=0)

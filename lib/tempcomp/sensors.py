@@ -1,0 +1,209 @@
+"""The calibrated sensors of a board, opened from its board module and re-applied from flash.
+
+``tempcomp.session`` calibrates and saves; after any reset one call brings it all back::
+
+    import tempcomp_board
+    from tempcomp.sensors import restore
+    s = restore(tempcomp_board)      # finds the parts, re-applies what the session saved
+    s.show()                         # one line: temperature and compensated rates
+    s.mpu.read_compensated(buf)      # per sample (mg, mdps): zero allocation
+    s.mlx.rate()                     # milli-deg/s, zero allocation
+    s.adxrs.rate()                   # milli-deg/s, zero allocation
+
+A board module (``boards/*.py``, copied as ``tempcomp_board``) provides ``i2c()``, ``spi()``,
+``mlx_cs()``, ``adc(name)`` and ``ADC_VREF_MV``; optionally ``MPU6500_ADDR`` (0x68),
+``ADC_DIVIDER`` (sensor volts per ADC-pin volt, 1.0) and ``ADXRS_MV_PER_DPS`` (6.0). A part
+that does not answer is reported and left out (``Sensors.missing`` says why).
+
+Store names (``tempcomp.store.Store``, default ``/tempcomp.cal``): ``mlx90609`` (table and
+re-zero, ``MLX90609.save``), ``mpu6xxx`` (offset registers, ``MPU6xxx.save``), ``mpu_tc``
+(``BiasModel.to_ints``), ``adxrs`` (``AnalogGyro.to_record``).
+"""
+
+from tempcomp.adxrs import AnalogGyro
+from tempcomp.mlx90609 import MLX90609
+from tempcomp.mpu6xxx import MPU6xxx
+from tempcomp.mpu6xxx_tc import BiasModel
+from tempcomp.store import Store
+
+STORE_PATH = "/tempcomp.cal"
+MLX = "mlx90609"
+MPU = "mpu6xxx"
+MPU_TC = "mpu_tc"
+ADXRS = "adxrs"
+ALL = (MLX, MPU, ADXRS)
+
+ADXRS_NULL_MV = 2500.0  # datasheet null of an ADXRS6xx at 5 V: what an uncalibrated reading assumes
+_VT_MIN_MV = 1000  # a temperature output outside this window means no analog gyro is wired
+_VT_MAX_MV = 4000
+_GYRO_REG_OUT = 4  # one gyro offset register LSB moves the +-250 dps output by 4 LSB
+_GYRO_LSB_DPS = 131.0
+
+
+class Sensors:
+    """The parts found on a board: ``mlx``, ``mpu``, ``adxrs`` (None when absent)."""
+
+    def __init__(self, board):
+        self.board = board
+        self.mlx = None  # type: MLX90609 | None
+        self.mpu = None  # type: MPU6xxx | None
+        self.adxrs = None  # type: AnalogGyro | None
+        self.model = None  # type: BiasModel | None  # the MPU's offset(T), once calibrated or restored
+        self.missing = {}  # type: dict
+        self.restored = []  # type: list
+        self.adxrs_mv_per_dps = float(getattr(board, "ADXRS_MV_PER_DPS", 6.0))
+        self._buf = [0] * 7
+
+    def found(self):
+        """Names of the parts that answered."""
+        return [n for n, p in ((MLX, self.mlx), (MPU, self.mpu), (ADXRS, self.adxrs)) if p is not None]
+
+    def temp_c(self):
+        """Board temperature, degC (float): the MPU's sensor, else the MLX90609's TEMPOUT."""
+        if self.mpu is not None:
+            return self.mpu.temp_c100() / 100.0
+        mlx = self.mlx
+        if mlx is not None and mlx.table is not None:
+            return mlx_degc(mlx.table.tc, mlx.tempout_mv())
+        return None
+
+    def read(self, n=16):
+        """Mean of n samples: dict of (compensated, uncompensated) deg/s per axis, and degC.
+
+        Uncompensated is what the part gives with no calibration at all: the MPU's output
+        with its offset registers at zero, the MLX90609's code against its nominal 2.5 V
+        zero and scale, the analog gyro's voltage against the datasheet null and scale.
+        """
+        out = {"temp_c": self.temp_c()}  # type: dict
+        mpu = self.mpu
+        if mpu is not None:
+            # compensated: offset(T) in software when a BiasModel is in use, else the output
+            # with the calibrated offset registers (room-temperature calibration only)
+            b = self._buf
+            comp = [0.0, 0.0, 0.0]
+            raw = [0, 0, 0]
+            regs = mpu.offsets()[0]
+            tc = self.model is not None
+            for _ in range(n):
+                if tc:
+                    mpu.read_compensated(b)
+                    for k in range(3):
+                        comp[k] += b[3 + k]
+                mpu.read_raw(b)
+                for k in range(3):
+                    if not tc:
+                        comp[k] += b[4 + k] * 1000 / _GYRO_LSB_DPS
+                    raw[k] += b[4 + k] - _GYRO_REG_OUT * regs[k]
+            for k in range(3):
+                out["mpu_g" + "xyz"[k]] = (comp[k] / (1000.0 * n), raw[k] / (_GYRO_LSB_DPS * n))
+        mlx = self.mlx
+        if mlx is not None and mlx.table is not None:
+            s0 = mlx.table.s0("digital")
+            zero = (2500 - 400) * 12 / 25.0  # the code of a 2.5 V output
+            sc = sr = 0
+            for _ in range(n):
+                sc += mlx.rate()
+                sr += mlx.rate_code()
+            out["mlx"] = (sc / (float(mlx.out_scale) * n), (sr / n - zero) / s0)
+        if self.adxrs is not None:
+            a = self.adxrs
+            sc = sr = 0
+            for _ in range(n):
+                if a.comp is not None:
+                    sc += a.rate()
+                sr += a.read_codes()[1]
+            mv = sr * a.mv_per_code / n
+            c = sc / (float(a.out_per_dps) * n) if a.comp is not None else None
+            out["adxrs"] = (c, (mv - ADXRS_NULL_MV) / self.adxrs_mv_per_dps)
+        return out
+
+    def show(self, n=16):
+        """Print temperature and compensated (uncompensated) rates, deg/s."""
+        r = self.read(n)
+        parts = []
+        t = r.get("temp_c")
+        if t is not None:
+            parts.append("%.2f degC" % t)
+        for key in ("mpu_gx", "mpu_gy", "mpu_gz", "mlx", "adxrs"):
+            if key in r:
+                c, u = r[key]
+                parts.append("%s %s (raw %+.3f)" % (key, "--" if c is None else "%+.3f" % c, u))
+        print("  ".join(parts))
+        return r
+
+
+def mlx_degc(tc, tempout_mv):
+    """degC from TEMPOUT (mV) through the table's TC at -40/25/85 degC, piecewise linear."""
+    if tempout_mv <= tc[1]:
+        return 25.0 + 65.0 * (tempout_mv - tc[1]) / (tc[1] - tc[0])
+    return 25.0 + 60.0 * (tempout_mv - tc[1]) / (tc[2] - tc[1])
+
+
+def open_sensors(board, which=ALL):
+    """Sensors with every part of ``which`` that answers on the board's buses (uncalibrated)."""
+    s = Sensors(board)
+    for name in which:
+        if name not in ALL:
+            raise ValueError("unknown sensor %r; choose from %s" % (name, ", ".join(ALL)))
+    if MPU in which:
+        try:
+            s.mpu = MPU6xxx(board.i2c(), getattr(board, "MPU6500_ADDR", 0x68))
+        except (OSError, AttributeError) as e:
+            s.missing[MPU] = "no MPU-6xxx on I2C: %s" % (e,)
+    if MLX in which:
+        try:
+            s.mlx = MLX90609(board.spi(), board.mlx_cs())
+        except (OSError, AttributeError) as e:
+            s.missing[MLX] = "no MLX90609 on SPI: %s" % (e,)
+    if ADXRS in which:
+        try:
+            g = AnalogGyro(board.adc("rate"), board.adc("temp"), board.ADC_VREF_MV,
+                           getattr(board, "ADC_DIVIDER", 1.0))
+            vt = g.measure(8)[0]
+        except (OSError, AttributeError, KeyError) as e:
+            s.missing[ADXRS] = "no analog gyro inputs on this board: %s" % (e,)
+        else:
+            if _VT_MIN_MV < vt < _VT_MAX_MV:
+                s.adxrs = g
+            else:
+                s.missing[ADXRS] = "no analog gyro: its temperature output reads %d mV" % vt
+    return s
+
+
+def restore(board, path=STORE_PATH, which=ALL, verbose=True):
+    """Open the board's parts and re-apply everything saved in the store at path.
+
+    Returns the Sensors, ready for compensated reads. A part with nothing saved is left
+    uncalibrated and named in the report; a record that does not fit the part raises
+    ValueError (the part keeps its present state).
+    """
+    s = open_sensors(board, which)
+    st = Store(path)
+    try:
+        names = st.names()
+    except (OSError, ValueError) as e:
+        raise OSError("no calibration in %s (%s): run the session first" % (path, e))
+    if s.mlx is not None and MLX in names:
+        s.mlx.load(st, MLX)
+        s.restored.append(MLX)
+    mpu = s.mpu
+    if mpu is not None:
+        if MPU in names:
+            mpu.restore(st, MPU)
+            s.restored.append(MPU)
+        if MPU_TC in names:
+            model = BiasModel.from_ints(st.load(MPU_TC))
+            mpu.compensate(model)
+            s.model = model
+            s.restored.append(MPU_TC)
+    if s.adxrs is not None and ADXRS in names:
+        s.adxrs.load_record(st.load(ADXRS))
+        s.restored.append(ADXRS)
+    if verbose:
+        print("restored from %s: %s" % (path, ", ".join(s.restored) or "nothing"))
+        for name in s.found():
+            if name not in s.restored:
+                print("  %s: nothing saved, uncalibrated" % name)
+        for name in s.missing:
+            print("  %s" % s.missing[name])
+    return s
