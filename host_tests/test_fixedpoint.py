@@ -56,6 +56,8 @@ def test_div_pow2_is_exact_floor_within_bounds():
 
 def _bounded(comp):
     bind(comp, ["_gh", "_gl", "_b", "_s", "_half", "_mid", "_eo", "_eg", "_k", "_kmask"])
+    if comp._p3 is not None:
+        bind(comp, ["_p3"])
     for p in comp._sc + comp._off:
         bind(p, ["_a", "_a0", "_mid", "_h", "_vs", "_vr"])
     comp._t = None
@@ -334,3 +336,21 @@ def test_vm_gives_the_same_results_and_allocates_nothing():
         assert alloc[name] == (0.0, True), (name, alloc[name])
     # the contrast: the same formula in floats allocates on every call
     assert alloc["float_formula"][0] > 0 and not alloc["float_formula"][1]
+
+
+def test_three_axis_burst_path_stays_within_bounds_at_the_corners():
+    # the unrolled path folds the rounding half into the offset term: check its sums at the
+    # largest gain and offsets the set-up accepts, for the extreme int16 codes
+    offs = [[16000.0, 0.1], [-16000.0, -0.1], [0.0]]
+    scs = [[1.0 / 250.0], [1.0 / 250.0, 1e-9], [1.0 / 200.0]]
+    comp = _bounded(fp.Compensator(offs, scs, (-30000, 30000), out_scale=1.0))
+    assert comp._p3 is not None
+    out = [0, 0, 0]
+    for t in (-30000, 0, 30000):
+        comp.update(BInt(t))
+        for a, b, c in ((-32768, 32767, 0), (32767, -32768, -1), (-1, 0, 32767)):
+            buf = bytearray()
+            for r in (a, b, c):
+                buf += (r & 0xFFFF).to_bytes(2, "big")
+            comp.apply_be16(buf, out)
+            assert out == [comp.apply(a, 0), comp.apply(b, 1), comp.apply(c, 2)]

@@ -15,6 +15,7 @@ against float64, and the sim-to-real gap diagnosis of a real log ($TEMPCOMP_DATA
 
 import argparse
 import ast
+import json
 import os
 import subprocess
 import sys
@@ -365,15 +366,19 @@ def main(argv=None):
     if r.returncode == 0:
         done.append("compared the fixed-point core with float64 in the VM")
 
-    header(8, "summary")
-    for line in done:
-        say(" - " + line)
-    say("took %.0f s; plot: %s" % (time.time() - t_start, os.path.relpath(png, REPO)))
-
-    header(9, "sim-to-real gap: diagnosis of a real log (TofuPilot IMU thermal test, gyro)")
+    header(8, "sim-to-real gap: diagnosis of a real log (TofuPilot IMU thermal test, gyro)")
     gap_png = gap_diagnosis()
     if gap_png:
         say("gap plot: %s" % os.path.relpath(gap_png, REPO))
+        with open(os.path.join(os.path.dirname(gap_png), "tofupilot_gyro.json")) as f:
+            verdict = json.load(f)["verdict"]
+        done.append("diagnosed a real IMU log: the temperature model misses %s (%s)" % (
+            ", ".join(verdict) or "nothing above the noise floor", os.path.relpath(gap_png, REPO)))
+
+    header(9, "summary")
+    for line in done:
+        say(" - " + line)
+    say("took %.0f s; plot: %s" % (time.time() - t_start, os.path.relpath(png, REPO)))
     return 0
 
 

@@ -388,8 +388,10 @@ class Compensator:
         self._b = [0] * n
         self.clamped = 0
         self._t = None
+        # the unrolled 3-axis burst path needs signed int16 raw codes (raw range middle 0)
+        self._p3 = [0] * 11 if (n == 3 and mid == 0) else None
         self.update(self._t_lo)
-        if n == 3:
+        if self._p3 is not None:
             # bound once here: calling a stored bound method allocates nothing
             self.apply_be16 = self._be16_3
 
@@ -412,6 +414,16 @@ class Compensator:
             # floor, not round: apply()'s floor of r*gl/2**15 errs the other way, so the two
             # truncations partly cancel
             self._b[k] = div_pow2(self._off[k].eval(t), self._eo[k], d)
+        p = self._p3
+        if p is not None:
+            j = 0
+            for k in range(3):
+                p[j] = self._gh[k]
+                p[j + 1] = self._gl[k]
+                p[j + 2] = self._b[k] - self._half
+                j += 3
+            p[9] = self._k
+            p[10] = self._s
 
     def apply(self, raw, axis=0):
         """Compensated value of one raw code (inside raw_range) in output units."""
@@ -440,29 +452,17 @@ class Compensator:
             j += 2
 
     def _be16_3(self, buf, out):
-        # unrolled for the common 3-axis burst: the loop version costs ~30 % more per sample
-        gh = self._gh
-        gl = self._gl
-        b = self._b
-        s = self._s
-        h = self._half
-        k = self._k
-        m = self._mid
-        v = buf[0] << 8 | buf[1]
-        if v & 0x8000:
-            v -= 0x10000
-        v -= m
-        out[0] = (v * gh[0] + ((v * gl[0]) >> k) - b[0] + h) >> s
-        v = buf[2] << 8 | buf[3]
-        if v & 0x8000:
-            v -= 0x10000
-        v -= m
-        out[1] = (v * gh[1] + ((v * gl[1]) >> k) - b[1] + h) >> s
-        v = buf[4] << 8 | buf[5]
-        if v & 0x8000:
-            v -= 0x10000
-        v -= m
-        out[2] = (v * gh[2] + ((v * gl[2]) >> k) - b[2] + h) >> s
+        # The common 3-axis int16 burst, unrolled, with every per-axis number in one flat list
+        # unpacked onto the stack (no allocation) and the rounding half folded into the offset
+        # term: about 1.6x the cost of a bare unpack in the VM, where the loop costs 2.5x.
+        # Bound: |v*g| <= 2**28, |(v*l) >> k| < 2**15, |b - half| <= 2**29 + 2**23: sum < 2**30.
+        g0, l0, b0, g1, l1, b1, g2, l2, b2, k, s = self._p3
+        v = ((buf[0] << 8 | buf[1]) ^ 0x8000) - 0x8000
+        out[0] = (v * g0 + ((v * l0) >> k) - b0) >> s
+        v = ((buf[2] << 8 | buf[3]) ^ 0x8000) - 0x8000
+        out[1] = (v * g1 + ((v * l1) >> k) - b1) >> s
+        v = ((buf[4] << 8 | buf[5]) ^ 0x8000) - 0x8000
+        out[2] = (v * g2 + ((v * l2) >> k) - b2) >> s
 
     def value(self, t, raw, axis=0):
         """update(t) then apply(raw, axis)."""
