@@ -456,7 +456,7 @@ class Compensator:
         # unpacked onto the stack (no allocation) and the rounding half folded into the offset
         # term: about 1.6x the cost of a bare unpack in the VM, where the loop costs 2.5x.
         # Bound: |v*g| <= 2**28, |(v*l) >> k| < 2**15, |b - half| <= 2**29 + 2**23: sum < 2**30.
-        g0, l0, b0, g1, l1, b1, g2, l2, b2, k, s = self._p3
+        g0, l0, b0, g1, l1, b1, g2, l2, b2, k, s = self._p3  # type: ignore[misc]  # set when bound
         v = ((buf[0] << 8 | buf[1]) ^ 0x8000) - 0x8000
         out[0] = (v * g0 + ((v * l0) >> k) - b0) >> s
         v = ((buf[2] << 8 | buf[3]) ^ 0x8000) - 0x8000
