@@ -202,53 +202,42 @@ class Session:
         p.done(self.packets)
         return pt
 
-    def _mlx_capture(self, g, s0, limit_dps=5):
-        # ZRO at rest with the motion and saturation checks rezero() does not make
+    def _still_capture(self, label, name, read, code_max, dps_per_code, limit_dps=5):
+        # mean (temperature, rate code) at rest from read() -> (t, code), refusing a saturated
+        # output or a board that moved (the checks the drivers' own zero captures do not make)
         n = self.samples
-        p = Progress("MLX90609  ", n)
-        st = so = 0
-        lo = _MLX_CODE_MAX
-        hi = 0
-        for i in range(n):
-            st += g.tempout_mv()
-            c = g.rate_code()
-            so += c
-            lo = min(lo, c)
-            hi = max(hi, c)
-            if c <= 0 or c >= _MLX_CODE_MAX:
-                raise CaptureError("MLX90609 rate output saturated (ADC code %d): not at rest?" % c)
-            p.show(i + 1)
-        p.done(n)
-        spread = (hi - lo) / s0
-        if spread > limit_dps:
-            raise CaptureError(
-                "the board moved during the MLX90609 capture: rate spread %.1f deg/s (limit %d); "
-                "keep it still" % (spread, limit_dps))
-        return st / n, so / n
-
-    def _adxrs_capture(self, g, limit_dps=5):
-        n = self.samples
-        p = Progress("analog    ", n)
+        p = Progress(label, n)
         st = sr = 0
-        lo = _ADC_MAX
+        lo = code_max
         hi = 0
         for i in range(n):
-            t, r = g.read_codes()
+            t, r = read()
             st += t
             sr += r
             lo = min(lo, r)
             hi = max(hi, r)
-            if r <= 0 or r >= _ADC_MAX:
-                raise CaptureError("analog gyro output saturated (ADC %d): not at rest, or not wired?" % r)
+            if r <= 0 or r >= code_max:
+                raise CaptureError("%s rate output saturated (ADC code %d): not at rest, or not wired?" % (name, r))
             p.show(i + 1)
         p.done(n)
-        q = g.mv_per_code
-        spread = (hi - lo) * q / self.s.adxrs_mv_per_dps
+        spread = (hi - lo) * dps_per_code
         if spread > limit_dps:
             raise CaptureError(
-                "the board moved during the analog gyro capture: rate spread %.1f deg/s (limit %d); "
-                "keep it still" % (spread, limit_dps))
-        return st * q / n, sr * q / n
+                "the board moved during the %s capture: rate spread %.1f deg/s (limit %d); "
+                "keep it still" % (name, spread, limit_dps))
+        return st / n, sr / n
+
+    def _mlx_capture(self, g, s0):
+        # (TEMPOUT mV, rate code) at rest
+        return self._still_capture("MLX90609  ", "MLX90609", lambda: (g.tempout_mv(), g.rate_code()),
+                                   _MLX_CODE_MAX, 1.0 / s0)
+
+    def _adxrs_capture(self, g):
+        # (VT mV, rate mV) at rest
+        q = g.mv_per_code
+        t, r = self._still_capture("analog    ", "analog gyro", g.read_codes, _ADC_MAX,
+                                   q / self.s.adxrs_mv_per_dps)
+        return t * q, r * q
 
     # ---- steps ----------------------------------------------------------------------------
     def _still(self):
