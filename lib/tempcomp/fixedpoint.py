@@ -366,23 +366,13 @@ class Compensator:
             )
         self._s = S
         self._half = 1 << (S - 1)
-        self._off = []
         self._sc = scs
-        self._eo = []
-        self._eg = []
+        self._off = list(scs)  # placeholders of the same type, each replaced just below
+        self._eo = [0] * n
+        # G = gain * 2**(K+S) = 2**(K+S+Fs) / D, with one extra bit for rounding
+        self._eg = [K + S + sp.frac + 1 for sp in scs]
         for k in range(n):
-            sp = scs[k]
-            op = Poly(offs[k], ev, t_ref, limit=_VALUE_BITS, max_frac=S + sp.frac)
-            o_min, o_max = op.extrema()
-            if max(-o_min, o_max) > (2 << K):
-                raise ValueError(
-                    "offset[%d] reaches %r raw LSB from the raw range's middle over t %r: "
-                    "outside the raw range %r" % (k, max(-o_min, o_max), ev, raw_range)
-                )
-            self._off.append(op)
-            # G = gain * 2**(K+S) = 2**(K+S+Fs) / D ; Boff = off * gain * 2**S
-            self._eg.append(K + S + sp.frac + 1)  # one extra bit for rounding
-            self._eo.append(S + sp.frac - op.frac)
+            self._set_offset(k, offs[k], ev, t_ref, "offset[%d]" % k)
         self._gh = [0] * n
         self._gl = [0] * n
         self._b = [0] * n
@@ -394,6 +384,20 @@ class Compensator:
         if self._p3 is not None:
             # bound once here: calling a stored bound method allocates nothing
             self.apply_be16 = self._be16_3
+
+    def _set_offset(self, k, coeffs, t_range, t_ref, what):
+        # Offset polynomial k in fixed point and its exponent in update()'s division
+        # (Boff = off * gain * 2**S). |offset - raw_mid| <= 2**(K+1) keeps |Boff| <= 2**29.
+        op = Poly(coeffs, t_range, t_ref, limit=_VALUE_BITS, max_frac=self._s + self._sc[k].frac)
+        o_min, o_max = op.extrema()
+        reach = max(-o_min, o_max)
+        if reach > (2 << self._k):
+            raise ValueError(
+                "%s: offset[%d] reaches %r raw LSB from the raw range's middle over t %r: "
+                "outside the raw range %r" % (what, k, reach, t_range, self.raw_range)
+            )
+        self._off[k] = op
+        self._eo[k] = self._s + self._sc[k].frac - op.frac
 
     def update(self, t):
         """Set the temperature reading used by apply(); zero allocation."""
@@ -476,13 +480,7 @@ class Compensator:
         c = list(op._coeffs_mid)
         c[0] += float(delta_raw)
         lo, hi = op.t_range
-        mid = (lo + hi) // 2
-        np_ = Poly(c, op.t_range, mid, limit=_VALUE_BITS, max_frac=self._s + self._sc[axis].frac)
-        o_min, o_max = np_.extrema()
-        if max(-o_min, o_max) > (2 << self._k):
-            raise ValueError("offset shift %r takes offset[%d] outside the raw range" % (delta_raw, axis))
-        self._off[axis] = np_
-        self._eo[axis] = self._s + self._sc[axis].frac - np_.frac
+        self._set_offset(axis, c, op.t_range, (lo + hi) // 2, "offset shift %r" % (delta_raw,))
         t = self._t
         self._t = None
         self.update(t)
