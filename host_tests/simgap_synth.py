@@ -28,3 +28,12 @@ def make(effect=None, n=3000, sigma=2.0, seed=0, **kw):
     out[:, 0] += extra
     out += rng.normal(0, sigma, (n, 3))
     return Log("synthetic", t, T, out, ref, {"sensor": "gyro"}, **kw)
+
+
+def play(T, w):
+    """Reference play operator (backlash of width w) written plainly, independent of the tool."""
+    v, out = T[0], []
+    for x in T:
+        v = min(max(v, x - w / 2), x + w / 2)
+        out.append(v)
+    return np.array(out)

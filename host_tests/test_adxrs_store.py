@@ -8,18 +8,12 @@ from tools import build_mpy
 
 VM_CODE = r"""
 from tools.sim.analog_gyro_sim import AnalogGyroSim
-from tempcomp.adxrs import AnalogGyro, point
+from tempcomp.adxrs import AnalogGyro
+import adxrs_cal
 from tempcomp.store import Store
 sim = AnalogGyroSim(vref_mv=3300, divider=2.0)
 g = AnalogGyro(sim.rate, sim.temp, vref_mv=3300, divider=2.0)
-pts = []
-for t in (-20.0, 25.0, 70.0):
-    sim.temp_c = t
-    sim.rate_dps = 0.0
-    vt, v0 = g.measure(64)
-    sim.rate_dps = 200.0
-    vt2, v1 = g.measure(64)
-    pts.append(point((vt + vt2) / 2, v0, v1, 200.0))
+pts = adxrs_cal.three_point(g, sim, (-20.0, 25.0, 70.0))
 g.set_three_point(*pts)
 Store("/flash/tempcomp.cal").save("gyro0", g.to_record())
 print("MAGIC", open("/flash/tempcomp.cal", "rb").read(4))

@@ -7,19 +7,11 @@ import sys
 import numpy as np
 import pytest
 
-from host_tests.simgap_synth import make
+from host_tests.simgap_synth import make, play
 from tools.simgap.effects import CATALOGUE
 from tools.simgap.logio import write_log
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-
-
-def _play(T, w):
-    v, out = T[0], []
-    for x in T:
-        v = min(max(v, x - w / 2), x + w / 2)
-        out.append(v)
-    return np.array(out)
 
 
 def _write(path, log):
@@ -40,7 +32,7 @@ def _run(*args):
 def hyst_result(tmp_path_factory):
     d = tmp_path_factory.mktemp("gap")
     def eff(t, T, r):
-        return 3 * (_play(T, 6.0) - T)
+        return 3 * (play(T, 6.0) - T)
 
     _write(d / "train.csv", make(eff, n=3000, seed=11))
     _write(d / "held.csv", make(eff, n=2000, seed=12))

@@ -3,7 +3,7 @@ segments of the one log), and the filters behind the families match hand computa
 import numpy as np
 import pytest
 
-from host_tests.simgap_synth import make, profile
+from host_tests.simgap_synth import make, play, profile
 from tools.simgap import features as F
 from tools.simgap import prep
 from tools.simgap.diagnose import diagnose
@@ -44,14 +44,6 @@ def test_unstair_recovers_a_ramp_behind_a_coarse_reading():
     assert np.sqrt(np.mean((reading[mid] - true[mid]) ** 2)) > 0.25
 
 
-def _play(T, w):
-    v, out = T[0], []
-    for x in T:
-        v = min(max(v, x - w / 2), x + w / 2)
-        out.append(v)
-    return np.array(out)
-
-
 def _lag(t, T, tau):
     y, v = [], T[0]
     for i in range(len(T)):
@@ -72,7 +64,7 @@ RUN = np.repeat([0, 1, 2], N // 3)
 CASES = {
     "offset_temperature": (lambda t, T, r: 15 * np.exp(-((T - 20) / 4) ** 2), {}),
     "sensitivity_temperature": (lambda t, T, r: 16 * 2e-5 * (T - 25) ** 2 * r[:, 0], {}),
-    "hysteresis": (lambda t, T, r: 3 * (_play(T, 6.0) - T), {}),
+    "hysteresis": (lambda t, T, r: 3 * (play(T, 6.0) - T), {}),
     "temp_rate": (lambda t, T, r: 2 * (T - _lag(t, T, 150.0)), {}),
     "cross_axis": (lambda t, T, r: 0.15 * r[:, 1], {}),
     "nonlinearity": (lambda t, T, r: 2e-3 * r[:, 0] ** 2, {}),
@@ -87,8 +79,8 @@ CASES = {
 def test_play_on_a_lagged_temperature_matches_hand_filters():
     t, T = profile(600)
     p = _prepared(t, T)
-    assert np.allclose(F.play(p, 3.0, 80.0), _play(_lag(t, T, 80.0), 3.0), atol=1e-9)
-    assert np.allclose(F.play(p, 3.0), _play(T, 3.0), atol=1e-12)
+    assert np.allclose(F.play(p, 3.0, 80.0), play(_lag(t, T, 80.0), 3.0), atol=1e-9)
+    assert np.allclose(F.play(p, 3.0), play(T, 3.0), atol=1e-12)
 
 
 def test_hysteresis_on_the_lagged_temperature_found_with_its_lag():
@@ -96,7 +88,7 @@ def test_hysteresis_on_the_lagged_temperature_found_with_its_lag():
     # through a first-order lag; the offset also follows the lagged temperature.
     def effect(t, T, r):
         L = _lag(t, T, 150.0)
-        return 2 * (T - L) + 4 * (_play(L, 6.0) - L)
+        return 2 * (T - L) + 4 * (play(L, 6.0) - L)
 
     log = make(effect, n=N, sigma=2.0, seed=9)
     res, ex = diagnose(log)

@@ -14,7 +14,8 @@ VM_CODE = r"""
 from array import array
 import allocprobe
 from tempcomp.an12760 import AN12760
-from tempcomp.adxrs import AnalogGyro, point
+from tempcomp.adxrs import AnalogGyro
+import adxrs_cal
 from tempcomp.crossaxis import CrossAxis
 from tools.sim.analog_gyro_sim import AnalogGyroSim, ReplayADC
 
@@ -61,14 +62,7 @@ allocprobe.report("an12760_be16", acc_be16, (), 300)
 # analog gyro: simulated sensor in the VM for set-up, replayed codes for the hot path
 sim = AnalogGyroSim(vref_mv=3300, divider=2.0, noise_mv=0.3, t_noise_mv=0.2, bits=12, seed=3)
 g = AnalogGyro(sim.rate, sim.temp, 3300, divider=2.0)
-pts = []
-for t in (-40, 25, 85):
-    sim.temp_c = t
-    sim.rate_dps = 0.0
-    vt, v0 = g.measure(64)
-    sim.rate_dps = 200.0
-    vt2, v1 = g.measure(64)
-    pts.append(point((vt + vt2) / 2, v0, v1, 200.0))
+pts = adxrs_cal.three_point(g, sim, (-40, 25, 85))
 g.set_three_point(pts[0], pts[1], pts[2])
 sim.temp_c = 60
 sim.rate_dps = -150.0
