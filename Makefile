@@ -9,7 +9,7 @@ NODE_MODULES := tools/node_modules
 PORT ?=
 BOARD ?= virtual
 BOARD_TCP ?= 2323
-VBOARD := node tools/vboard/server.mjs
+VBOARD := $(PY) -m tools board
 PYTEST_ARGS ?=
 
 .PHONY: setup test demo bench mpy typecheck lint deploy clean board board-start board-stop gap gap-check
@@ -27,7 +27,7 @@ $(NODE_MODULES)/.stamp: tools/package.json tools/package-lock.json
 
 test: setup typecheck
 	$(PY) -m ruff check lib boards tools host_tests
-	$(PY) -m pytest host_tests -q $(PYTEST_ARGS)
+	$(PY) -m pytest -q $(PYTEST_ARGS)
 
 typecheck: setup
 	$(NODE_MODULES)/.bin/pyright -p pyrightconfig.json
@@ -38,26 +38,26 @@ lint: setup
 # The main job: virtual board, deploy, scripted calibration session, resets, sweep, plot, gap
 # diagnosis of a real log. PORT=/dev/ttyACM0 BOARD=pico runs it against a real board.
 demo: setup
-	PORT="$(PORT)" BOARD="$(if $(PORT),$(BOARD),virtual)" DEMO_TCP=$(if $(filter command line environment,$(origin BOARD_TCP)),$(BOARD_TCP),0) $(PY) -m tools.demo
+	PORT="$(PORT)" BOARD="$(if $(PORT),$(BOARD),virtual)" DEMO_TCP=$(if $(filter command line environment,$(origin BOARD_TCP)),$(BOARD_TCP),0) $(PY) -m tools demo
 
 bench: setup
-	$(PY) -m tools.bench
+	$(PY) -m tools bench
 
 # Sim-to-real gap diagnosis of a log (see README): make gap LOG=train.csv [WITHHELD=held.csv]
 gap: setup
 	@test -n "$(LOG)" || { echo "usage: make gap LOG=train.csv [WITHHELD=held.csv]"; exit 2; }
 	@mkdir -p out
-	$(PY) -m tools.simgap $(LOG) $(if $(WITHHELD),--withheld $(WITHHELD)) --json out/gap.json --plot out/gap.png
+	$(PY) -m tools gap $(LOG) $(if $(WITHHELD),--withheld $(WITHHELD)) --json out/gap.json --plot out/gap.png
 
 # The blind benchmark of the gap diagnosis: 27 generated cases with hidden labels
 gap-check: setup
-	$(PY) -m tools.gapcheck
+	$(PY) -m tools gap-check
 
 mpy: setup
-	$(PY) -m tools.build_mpy build/mpy
+	$(PY) -m tools mpy build/mpy
 
 deploy: setup
-	BOARD_TCP=$(BOARD_TCP) $(PY) -m tools.deploy --port "$(PORT)" --board "$(BOARD)"
+	BOARD_TCP=$(BOARD_TCP) $(PY) -m tools deploy --port "$(PORT)" --board "$(BOARD)"
 
 # The virtual board: the MicroPython VM serving its REPL on 127.0.0.1:$(BOARD_TCP), flash kept in
 # build/vboard/flash/. `make board` runs it in the foreground; board-start/board-stop in the background.
@@ -68,7 +68,7 @@ board-start: setup
 	$(VBOARD) --port $(BOARD_TCP) --detach
 
 board-stop:
-	$(VBOARD) --stop
+	node tools/vboard/server.mjs --stop
 
 clean:
 	rm -rf build $(VENV) $(NODE_MODULES)

@@ -1,0 +1,110 @@
+"""docs/mpu6xxx.md works as written: its REPL session against a simulated MPU-6500 standing in
+for ``machine.I2C`` (on CPython with the shown output, and in the MicroPython VM), and its code
+snippets against the same simulated part."""
+
+import doctest
+import os
+import re
+import sys
+
+import pytest
+from paths import REPO
+
+from tempcomp.mpu6xxx_tc import BiasModel
+from tools.firmware import mpvm
+
+DOC = os.path.join(REPO, "docs", "mpu6xxx.md")
+
+# what `machine` is for these tests: a simulated MPU-6500 lying still on its -x face
+FAKE_MACHINE = '''
+from tools.sim.buses import SimI2C
+from tools.sim.mpu6xxx_sim import MPU6xxxSim
+
+sim = MPU6xxxSim("MPU-6500", seed=2024)
+sim.place("-x")
+
+
+class Pin:
+    def __init__(self, *args, **kwargs):
+        pass
+
+
+def I2C(*args, **kwargs):
+    return SimI2C({0x68: sim})
+'''
+
+
+@pytest.fixture
+def fake_machine(tmp_path):
+    (tmp_path / "machine.py").write_text(FAKE_MACHINE)
+    sys.path.insert(0, str(tmp_path))
+    sys.modules.pop("machine", None)
+    yield tmp_path
+    sys.path.remove(str(tmp_path))
+    sys.modules.pop("machine", None)
+
+
+def blocks():
+    return re.findall(r"```(\w*)\n(.*?)```", open(DOC).read(), re.S)
+
+
+def test_repl_session_gives_the_shown_output(fake_machine):
+    repl = [b for lang, b in blocks() if lang == "python" and ">>> " in b]
+    assert repl and "MPU-6500" in repl[0]
+    for i, block in enumerate(repl):
+        test = doctest.DocTestParser().get_doctest(block, {}, "mpu6xxx.md block %d" % i, DOC, 0)
+        runner = doctest.DocTestRunner(optionflags=doctest.NORMALIZE_WHITESPACE)
+        runner.run(test)
+        assert runner.failures == 0, "docs/mpu6xxx.md block %d does not give the output it shows" % i
+    import machine
+
+    # the session really calibrated the part: bias gone on the simulated outputs
+    m = machine.sim.mean_output()
+    assert abs(m[0] / 16384.0 + 1.0) <= 0.001 and abs(m[1]) / 16384.0 <= 0.001
+
+
+def test_repl_session_runs_in_the_vm(fake_machine):
+    repl = [b for lang, b in blocks() if lang == "python" and ">>> " in b]
+    src = "\n".join(ln[4:] for b in repl for ln in b.splitlines() if ln.startswith(">>> "))
+    src += "\nprint(imu.part, imu.offsets() == (gyro, accel), imu.temp_c100(), len(record))\n"
+    out = mpvm.run(
+        src,
+        mounts=(os.path.join(REPO, "tools", "sim") + ":/tools/sim", str(fake_machine) + ":/fake"),
+        paths=("/", "/fake"),
+    )
+    assert out.split()[-4:] == ["MPU-6500", "True", "2500", "10"]
+
+
+def test_snippets_run_against_the_simulated_part(fake_machine, tmp_path):
+    import machine
+
+    from tempcomp.mpu6xxx import MPU6xxx
+
+    snippets = [b for lang, b in blocks() if lang == ""]
+    assert len(snippets) == 4
+    i2c = machine.I2C(0)
+    imu = MPU6xxx(i2c)
+    imu.calibrate(packets=200)
+    try:
+        import tempcomp.store  # noqa: F401  (the coefficient store, when it is there)
+
+        have_store = True
+    except ImportError:
+        have_store = False
+    t = machine.sim.temp_raw()
+    # a one-point model (what the BiasModel snippet builds; it runs too when the store is there)
+    model = BiasModel([(t, (0.0, 0.0, 0.0), tuple(float(v) for v in imu.factory))])
+    ns = {"i2c": i2c, "imu": imu, "MPU6xxx": MPU6xxx, "model": model}
+    path = str(tmp_path / "tempcomp.cal")
+    for code in snippets:
+        code = code.replace("/tempcomp.cal", path)
+        if "store" in code.lower():
+            if not have_store:
+                continue
+            from tempcomp.store import Store
+
+            ns["store"] = Store(path)
+        i2c.writeto_mem(0x68, 0x6B, b"\x01")  # awake, as follow() needs
+        exec(code, ns)
+        assert isinstance(ns["model"], BiasModel)
+    assert ns["out"][6] == 2500

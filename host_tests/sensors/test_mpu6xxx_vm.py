@@ -1,0 +1,93 @@
+"""tempcomp.mpu6xxx in the real MicroPython VM (32-bit), against the same simulator.
+
+One VM run (host_tests/device/mpu6xxx_vmcheck.py) calibrates simulated parts behind SimI2C,
+probes allocation per captured FIFO batch and per compensated sample (allocprobe, with a
+non-allocating replay bus fed from the simulator), and prints integer results that CPython
+must reproduce exactly.
+"""
+
+import os
+import sys
+
+import pytest
+from paths import REPO
+
+from tempcomp.mpu6xxx import MPU6xxx
+from tempcomp.mpu6xxx_tc import BiasModel
+from tools.sim.buses import SimI2C
+from tools.sim.mpu6xxx_sim import FACES, MPU6xxxSim
+
+
+@pytest.fixture(scope="module")
+def vm_out():
+    from tools.firmware import mpvm
+
+    return mpvm.run(
+        "import mpu6xxx_vmcheck\nmpu6xxx_vmcheck.main()",
+        mounts=(os.path.join(REPO, "tools", "sim") + ":/tools/sim",),
+        paths=("/",),
+    )
+
+
+def test_calibration_in_vm(vm_out):
+    lines = [ln.split() for ln in vm_out.splitlines() if ln.startswith("CAL ")]
+    assert len(lines) == 4
+    for ln in lines:
+        face = ln[2]
+        regs = [int(v) for v in ln[3:9]]
+        factory = [int(v) for v in ln[9:12]]
+        mean = [float(v) for v in ln[12:18]]
+        exp = FACES[face]
+        for k in range(3):
+            assert abs(mean[k] / 16384.0 - exp[k]) <= 0.001, ln  # within 1 mg
+            # half a register step (2 LSB) + 4 sigma of a 300-sample mean of 1.31 LSB noise
+            assert abs(mean[3 + k]) <= 2.0 + 4 * 1.31 / 300**0.5, ln
+            assert regs[3 + k] & 1 == factory[k] & 1, ln  # reserved bit 0 kept
+    assert {(ln[1], ln[2]) for ln in lines} == {(p, f) for p in ("MPU-6050", "MPU-6500") for f in ("+z", "-y")}
+
+
+def test_zero_allocation_per_packet_and_sample(vm_out):
+    from tools.firmware import mpvm
+
+    res = mpvm.alloc_lines(vm_out)
+    for name in ("mpu_fifo_poll_16_packets", "mpu_accumulate_16_packets", "mpu_read_compensated", "mpu_temp_c100"):
+        b, locked_ok = res[name]
+        assert b == 0 and locked_ok, (name, res[name])
+    got = [ln for ln in vm_out.splitlines() if ln.startswith("GOT ")][0]
+    # every probed FIFO poll really read 16 packets: (2 + 200 + 2 + 51) calls
+    assert int(got.split()[1]) == 16 * 255
+
+
+def test_vm_integers_match_cpython(vm_out):
+    # the same computation on CPython (arbitrary-precision ints) must give identical integers
+    sys.path.insert(0, os.path.join(REPO, "host_tests", "device"))
+    try:
+        import mpu6xxx_vmcheck as chk
+    finally:
+        sys.path.pop(0)
+
+    t0 = 4000
+    model = BiasModel(chk.model_points(t0))
+    sim = MPU6xxxSim("MPU-6500", seed=5)
+    sim.regs[0x1B] = 0x18
+    sim.regs[0x1C] = 0x00
+    imu = MPU6xxx(SimI2C({0x68: sim}))
+    imu.compensate(model)
+    n = 0
+    for ln in vm_out.splitlines():
+        f = ln.split()
+        if f[0] == "COMP":
+            t, raw = int(f[1]), int(f[2])
+            imu._ca.update(t)
+            imu._cg.update(t)
+            exp = [imu._ca.apply(raw, k) for k in range(3)] + [imu._cg.apply(raw, k) for k in range(3)]
+            assert [int(v) for v in f[3:]] == exp, ln
+            n += 1
+        elif f[0] == "TGT":
+            g, a = model.targets(int(f[1]))
+            assert [int(v) for v in f[2:]] == list(g) + list(a), ln
+            n += 1
+        elif f[0] == "TEMP":
+            assert int(f[2]) == imu.temp_c100(int(f[1])), ln
+            n += 1
+    assert n == 7 * 7 + 7 + 7

@@ -1,0 +1,44 @@
+"""The blind benchmark with its targets, on the reduced case set (one case per effect, three
+pairs, two no-effect cases and one with outliers); `make gap-check` runs the full set.
+
+The cases come from tools/gapbench/gen.py, which shares no code with the diagnosis and builds each
+effect in a shape the tool's families do not contain; the tool sees only the CSV files."""
+import pytest
+
+from tools.gapbench import check as gapcheck
+from tools.gapbench import gen as gapgen
+
+
+@pytest.fixture(scope="module")
+def rows(tmp_path_factory):
+    return gapcheck.run(seed=7, full=False, outdir=str(tmp_path_factory.mktemp("blind")))
+
+
+def test_reduced_set_has_every_kind_of_case():
+    kinds = gapgen.cases(full=False)
+    singles = {c[1][0] for c in kinds if len(c[1]) == 1}
+    assert singles == set(gapgen.EFFECT_NAMES)
+    assert sum(len(c[1]) == 2 for c in kinds) >= 3
+    assert sum(not c[1] for c in kinds) >= 3 and any(c[2] for c in kinds)
+
+
+def test_every_single_effect_named_first(rows):
+    bad = [(r["case"], r["verdict"]) for r in rows if len(r["truth"]) == 1 and not r["attributed"]]
+    assert not bad
+
+
+def test_both_effects_of_each_pair_in_verdict(rows):
+    bad = [(r["case"], r["verdict"]) for r in rows if len(r["truth"]) == 2 and not r["attributed"]]
+    assert not bad
+
+
+def test_nothing_claimed_without_an_effect(rows):
+    bad = [(r["case"], r["verdict"]) for r in rows if not r["truth"] and r["verdict"]]
+    assert not bad
+
+
+def test_withheld_residual_within_25_percent_of_true_noise(rows):
+    bad = [(r["case"], round(r["ratio"], 3)) for r in rows if r["ratio"] > 1.25]
+    assert not bad
+    # ... and the effects were real gaps to begin with.
+    assert all(r["ratio_before"] > 1.05 for r in rows if r["truth"])

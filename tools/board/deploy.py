@@ -1,0 +1,59 @@
+"""`make deploy PORT=/dev/ttyACM0 BOARD=pico`: install tempcomp on a board with mpremote.
+
+Installs lib/tempcomp through the mip manifest (package.json, as `mpremote mip install` of this
+repository does) into the board's /lib, then copies boards/<BOARD>.py there as
+``tempcomp_board.py``. Without PORT it targets the virtual board on 127.0.0.1:$BOARD_TCP
+(default 2323), which `make board` starts.
+"""
+
+import argparse
+import os
+import socket
+import subprocess
+import sys
+
+from tools import REPO
+
+
+def virtual_port():
+    port = int(os.environ.get("BOARD_TCP", "2323"))
+    with socket.socket() as s:
+        s.settimeout(1.0)
+        if s.connect_ex(("127.0.0.1", port)) != 0:
+            raise SystemExit(
+                "no PORT given and no virtual board listening on 127.0.0.1:%d: start one with "
+                "`make board` (or BOARD_TCP=N make board), or pass PORT=/dev/ttyACM0" % port
+            )
+    return "socket://127.0.0.1:%d" % port
+
+
+def deploy_commands(port, board):
+    board_py = os.path.join(REPO, "boards", board + ".py")
+    if not os.path.exists(board_py):
+        choices = sorted(f[:-3] for f in os.listdir(os.path.join(REPO, "boards")) if f.endswith(".py") and f != "__init__.py")
+        raise SystemExit("no board module boards/%s.py; choose one of: %s" % (board, ", ".join(choices)))
+    mp = [sys.executable, "-m", "mpremote", "connect", port]
+    return [
+        mp + ["mip", "install", "--target", "/lib", os.path.join(REPO, "package.json")],
+        mp + ["cp", board_py, ":/lib/tempcomp_board.py"],
+    ]
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--port", default="", help="serial device or pyserial URL; empty: the virtual board")
+    ap.add_argument("--board", default="virtual", help="module in boards/ (pico, esp32_devkit, feather_rp2040, virtual)")
+    a = ap.parse_args(argv)
+    port = a.port or virtual_port()
+    if a.board == "feather_rp2040":
+        print("note: CircuitPython boards don't run mpremote; copy lib/tempcomp and boards/feather_rp2040.py"
+              " (as tempcomp_board.py) to CIRCUITPY/lib with your file manager or circup")
+        return 1
+    for cmd in deploy_commands(port, a.board):
+        print("+ " + " ".join(cmd[2:]), flush=True)
+        subprocess.run(cmd, check=True)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,261 @@
+"""Host tool for tempcomp calibration stores: inspect, convert to JSON and back, export.
+
+    python -m tools.board.storetool dump tempcomp.cal            # every copy, its state, the records
+    python -m tools.board.storetool bin2json tempcomp.cal -o cal.json
+    python -m tools.board.storetool json2bin cal.json -o tempcomp.cal
+    python -m tools.board.storetool export tempcomp.cal -o calib_const.py   # const() module to freeze
+    ... --nvm            the file is a dump of CircuitPython's microcontroller.nvm (two slots)
+    ... json2bin --nvm 4096   write a 4096-byte nvm image (slot A used, the rest erased 0xFF)
+
+Copy a store from a board with ``mpremote cp :tempcomp.cal .`` and back the same way.
+
+The codec here is written from the format table in docs/store.md, independently of
+lib/tempcomp/store.py (the device code), so that a round trip through both checks the format
+rather than one implementation against itself. JSON fields: format, generation, records: a
+list of {name, part, serial, kind, t_unit, t_span, counter, time, values, frac}; "real" (the
+values scaled by 2**-frac) and "time_utc" are written for reading and ignored on input, except
+that "real" is used when "values" is absent.
+"""
+
+import argparse
+import json
+import struct
+import sys
+import time
+import zlib
+
+MAGIC = b"TCAL"
+FORMAT = 1
+HEADER = struct.Struct("<4sHHII")  # magic, version, count, total length, generation
+ENTRY = struct.Struct("<HBBBBBBHHiiII")  # see docs/store.md "Entry"
+KINDS = ["raw", "mlx90609_rezero", "mpu_offset_poly", "adi_three_point", "an12760_axis", "ellipsoid"]
+T_UNITS = ["none", "raw", "centi_degC", "mV"]
+
+
+class FormatError(ValueError):
+    pass
+
+
+def _ascii(b, what, allow_space=True):
+    lo = 0x20 if allow_space else 0x21
+    if any(not lo <= c <= 0x7E for c in b):
+        raise FormatError("%s %r is not printable ASCII" % (what, b))
+    return b.decode("ascii")
+
+
+def decode_image(data, slot=False):
+    """bytes of one store image -> dict; FormatError naming the problem."""
+    if len(data) < 20:
+        raise FormatError("%d bytes: too short for a store (header 16 + CRC 4)" % len(data))
+    magic, version, count, length, generation = HEADER.unpack_from(data, 0)
+    if magic != MAGIC:
+        raise FormatError("magic %r is not %r: not a tempcomp store" % (magic, MAGIC))
+    if version != FORMAT:
+        raise FormatError("format version %d; this tool reads version %d" % (version, FORMAT))
+    if (length > len(data)) if slot else (length != len(data)):
+        raise FormatError("header length %d but %d bytes present" % (length, len(data)))
+    data = data[:length]
+    (crc,) = struct.unpack_from("<I", data, length - 4)
+    if zlib.crc32(data[: length - 4]) != crc:
+        raise FormatError("CRC32 mismatch")
+    records = []
+    off = 16
+    for k in range(count):
+        (elen, kind, t_unit, nl, pl, sl, r1, m, r2, t_lo, t_hi, counter, when) = ENTRY.unpack_from(data, off)
+        text_len = nl + pl + sl + m
+        want = 28 + (text_len + 3) // 4 * 4 + 4 * m
+        if r1 or r2 or elen != want or off + elen > length - 4 or not 1 <= nl <= 32:
+            raise FormatError("entry %d at offset %d is malformed" % (k, off))
+        p = off + 28
+        name = _ascii(data[p : p + nl], "name", True)
+        part = _ascii(data[p + nl : p + nl + pl], "part", True)
+        serial = _ascii(data[p + nl + pl : p + nl + pl + sl], "serial", True)
+        frac = list(struct.unpack_from("<%db" % m, data, p + nl + pl + sl))
+        values = list(struct.unpack_from("<%di" % m, data, off + elen - 4 * m))
+        records.append({
+            "name": name,
+            "part": part,
+            "serial": serial,
+            "kind": KINDS[kind] if kind < len(KINDS) else kind,
+            "t_unit": T_UNITS[t_unit] if t_unit < len(T_UNITS) else t_unit,
+            "t_span": [t_lo, t_hi],
+            "counter": counter,
+            "time": when,
+            "time_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime(when)) if when else None,
+            "values": values,
+            "frac": frac,
+            "real": [v * 2.0 ** -f for v, f in zip(values, frac)],
+        })
+        off += elen
+    if off != length - 4:
+        raise FormatError("%d stray bytes after the last entry" % (length - 4 - off))
+    return {"format": version, "generation": generation, "records": records}
+
+
+def _code(value, names, what):
+    if isinstance(value, int):
+        return value
+    if value in names:
+        return names.index(value)
+    raise FormatError("unknown %s %r (one of %s or an int)" % (what, value, ", ".join(names)))
+
+
+def encode_image(doc):
+    """dict (as decode_image returns, or edited JSON) -> bytes of one store image."""
+    body = b""
+    recs = doc["records"]
+    for r in recs:
+        name = r["name"].encode("ascii")
+        part = r.get("part", "").encode("ascii")
+        serial = r.get("serial", "").encode("ascii")
+        frac = list(r.get("frac") or [0] * len(r.get("values", r.get("real", []))))
+        if "values" in r:
+            values = list(r["values"])
+        else:
+            values = [round(x * 2.0 ** f) for x, f in zip(r["real"], frac)]
+        if len(frac) != len(values):
+            raise FormatError("record %r: %d frac for %d values" % (r["name"], len(frac), len(values)))
+        for v in values:
+            if not -(2**31) <= v < 2**31:
+                raise FormatError("record %r: value %d outside int32" % (r["name"], v))
+        if not 1 <= len(name) <= 32 or len(part) > 16 or len(serial) > 32:
+            raise FormatError("record %r: name/part/serial too long" % (r["name"],))
+        _ascii(name, "name", True)
+        m = len(values)
+        text = name + part + serial + struct.pack("<%db" % m, *frac)
+        text += b"\0" * (-len(text) % 4)
+        elen = 28 + len(text) + 4 * m
+        t_lo, t_hi = r.get("t_span", [0, 0])
+        body += ENTRY.pack(elen, _code(r.get("kind", 0), KINDS, "kind"),
+                           _code(r.get("t_unit", 0), T_UNITS, "t_unit"), len(name), len(part),
+                           len(serial), 0, m, 0, t_lo, t_hi, r.get("counter", 0), r.get("time") or 0)
+        body += text + struct.pack("<%di" % m, *values)
+    length = 16 + len(body) + 4
+    data = HEADER.pack(MAGIC, doc.get("format", FORMAT), len(recs), length, doc["generation"]) + body
+    return data + struct.pack("<I", zlib.crc32(data))
+
+
+def read_copies(path, nvm=False):
+    """[(label, bytes or None)] for every copy the device code would consider."""
+    if nvm:
+        with open(path, "rb") as f:
+            data = f.read()
+        half = len(data) // 2
+        return [("slot A", data[:half]), ("slot B", data[half : 2 * half])]
+    out = []
+    for p in (path, path + ".old", path + ".new"):
+        try:
+            with open(p, "rb") as f:
+                out.append((p, f.read()))
+        except FileNotFoundError:
+            out.append((p, None))
+    return out
+
+
+def newest(copies, nvm=False):
+    """(label, doc, problems): the valid copy with the highest generation."""
+    best = None
+    problems = []
+    for label, data in copies:
+        if data is None:
+            continue
+        try:
+            doc = decode_image(data, slot=nvm)
+        except FormatError as e:
+            problems.append("%s: %s" % (label, e))
+            continue
+        if best is None or doc["generation"] > best[1]["generation"]:
+            best = (label, doc)
+    if best is None:
+        raise FormatError("no valid copy: " + "; ".join(problems or ["nothing found"]))
+    return best[0], best[1], problems
+
+
+def to_json(doc):
+    return json.dumps(doc, indent=2) + "\n"
+
+
+def _ident(name):
+    s = "".join(c if c.isalnum() else "_" for c in name.upper())
+    return "R" + s if s[0].isdigit() else s
+
+
+def export_text(doc):
+    """A Python module of const() values (same layout as Store.export_module)."""
+    lines = ["# tempcomp calibration, store generation %d. Generated: edit by re-exporting." % doc["generation"],
+             "try:", "    from micropython import const", "except ImportError:", "",
+             "    def const(x):", "        return x", "", "", "GENERATION = const(%d)" % doc["generation"]]
+    table = []
+    for r in doc["records"]:
+        k = _ident(r["name"])
+        kind = _code(r["kind"], KINDS, "kind")
+        unit = _code(r["t_unit"], T_UNITS, "t_unit")
+        lines.append("%s_VALUES = const(%r)" % (k, tuple(r["values"])))
+        lines.append("%s_FRAC = const(%r)" % (k, tuple(r["frac"])))
+        lines.append("%s_META = const(%r)" % (k, (r["part"], r["serial"], kind, r["t_span"][0],
+                                                  r["t_span"][1], unit, r["counter"], r["time"] or 0)))
+        table.append("    %r: (%s_VALUES, %s_FRAC, %s_META)," % (r["name"], k, k, k))
+    lines.append("# name: (values, frac, (part, serial, kind, t_lo, t_hi, t_unit, counter, time))")
+    lines += ["RECORDS = {"] + table + ["}"]
+    return "\n".join(lines) + "\n"
+
+
+def _write(path, data):
+    if path in (None, "-"):
+        if isinstance(data, bytes):
+            sys.stdout.buffer.write(data)
+        else:
+            sys.stdout.write(data)
+        return
+    with open(path, "wb" if isinstance(data, bytes) else "w") as f:
+        f.write(data)
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(prog="python -m tools.board.storetool", description=__doc__.split("\n")[0])
+    sub = ap.add_subparsers(dest="cmd", required=True)
+    for cmd in ("dump", "bin2json", "export"):
+        p = sub.add_parser(cmd)
+        p.add_argument("store")
+        p.add_argument("--nvm", action="store_true", help="the file is a microcontroller.nvm dump")
+        if cmd != "dump":
+            p.add_argument("-o", "--out", default="-")
+    p = sub.add_parser("json2bin")
+    p.add_argument("json")
+    p.add_argument("-o", "--out", required=True)
+    p.add_argument("--nvm", type=int, metavar="SIZE", help="write a SIZE-byte nvm image")
+    a = ap.parse_args(argv)
+    try:
+        if a.cmd == "json2bin":
+            with open(a.json) as f:
+                image = encode_image(json.load(f))
+            decode_image(image)  # refuse to write what the format cannot read back
+            if a.nvm:
+                if len(image) > a.nvm // 2:
+                    raise FormatError("%d-byte store does not fit a %d-byte nvm slot" % (len(image), a.nvm // 2))
+                image = image + b"\xff" * (a.nvm - len(image))
+            _write(a.out, image)
+            return 0
+        label, doc, problems = newest(read_copies(a.store, a.nvm), a.nvm)
+        for p in problems:
+            print("warning: %s (using %s)" % (p, label), file=sys.stderr)
+        if a.cmd == "bin2json":
+            _write(a.out, to_json(doc))
+        elif a.cmd == "export":
+            _write(a.out, export_text(doc))
+        else:
+            print("%s: format %d, generation %d, %d record(s)" % (label, doc["format"], doc["generation"], len(doc["records"])))
+            for r in doc["records"]:
+                print("  %-16s part=%r serial=%r kind=%s t=%d..%d %s counter=%d time=%s" % (
+                    r["name"], r["part"], r["serial"], r["kind"], r["t_span"][0], r["t_span"][1],
+                    r["t_unit"], r["counter"], r["time_utc"] or "-"))
+                for i, (v, f, x) in enumerate(zip(r["values"], r["frac"], r["real"])):
+                    print("    [%d] %11d  Q%-3d %.9g" % (i, v, f, x))
+    except (FormatError, OSError, KeyError, json.JSONDecodeError) as e:
+        print("storetool: %s" % (e,), file=sys.stderr)
+        return 1
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,5 @@
+"""The real interpreters the on-device code runs on in tests and benchmarks, and their runners:
+``mpvm`` runs a script in the MicroPython WebAssembly VM (``mpvm.mjs`` under node).
+
+May import: ``tools`` (paths) only. Scripts it runs come from ``lib/`` and ``host_tests/device/``.
+"""
