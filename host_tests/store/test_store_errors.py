@@ -146,7 +146,7 @@ def test_read_only_filesystem_gives_the_boot_py_fix(tmp_path, saved, monkeypatch
     real_open = builtins.open
 
     def ro_open(path, mode="r", *a, **kw):
-        if "w" in mode:
+        if "w" in mode or "x" in mode:
             raise OSError(30, "Read-only filesystem")
         return real_open(path, mode, *a, **kw)
 
