@@ -410,7 +410,7 @@ def test_calibration_ints_round_trip_and_bad_records():
 
 
 def test_save_and_reapply_through_the_store(tmp_path):
-    store_mod = pytest.importorskip("tempcomp.store")  # lib/tempcomp/store.py (branch store)
+    from tempcomp import store as store_mod  # an import error fails here: never a silent skip
     sim = ms.MLX90609Sim(version=2, full_scale_dps=150, supply_shift_mv=15.0)
     gyro, _, _ = blinka_gyro(sim)
     sim.set_state(0.0, 35.0)
