@@ -17,10 +17,13 @@ Units: gyro offset registers count 1/32.8 dps (the +-1000 dps unit) whatever the
 offset registers are 16-bit words in 2048 LSB/g (bits 15..1, 0.98 mg a step) whose bit 0 is
 reserved and always kept as the part holds it. Temperatures are hundredths of a degC.
 
-Errors: ``OSError`` (``MPUError``) for bus faults, a part that moved or is not lying on a face
-during capture, or a read-back that differs from what was written; ``ValueError`` for bad
-arguments. A failure while writing offsets restores the previous ones before raising, and the
-user's sensor configuration is restored after every capture.
+Errors: ``OSError`` (``MPUError``) for bus faults, a part that moved, turned (gravity moving,
+or a gyro bias beyond its datasheet zero-rate range) or is not lying on a face during capture,
+reads that are implausible or do not agree when repeated, or a read-back that differs from
+what was written; ``ValueError`` for bad arguments. A failure while writing offsets restores
+the previous ones before raising, and the user's sensor configuration is restored after every
+capture. ``check(every_ms=1000)`` in a loop keeps the offsets on parts that change their trim
+by themselves (ICM-20602).
 """
 
 import time as _time
