@@ -57,7 +57,7 @@ def torn_writes(p):
 
         def cut_open(path, mode="r", k=k):
             f = real_open(path, mode)
-            return _Torn(f, k) if "w" in mode else f
+            return _Torn(f, k) if ("w" in mode or "x" in mode) else f
 
         builtins.open = cut_open
         try:

@@ -17,6 +17,10 @@ class PowerCut(BaseException):
     pass
 
 
+def _writing(mode):
+    return "w" in mode or "x" in mode  # the store creates its scratch file with "xb"
+
+
 class _TornFile:
     """A file opened for writing whose first write stops after k bytes, then the power goes."""
 
@@ -80,7 +84,7 @@ class Medium:
         self.log.append(("open", os.path.basename(str(path)), mode))
         self._op("open", "before")
         old = b""
-        if "w" in mode and self.tear is not None:
+        if _writing(mode) and self.tear is not None:
             try:
                 with Medium.real_open(path, "rb") as f:
                     old = f.read()
@@ -89,7 +93,7 @@ class Medium:
         f = Medium.real_open(path, mode, *a, **kw)
         self._op("open", "after")
         self.count += 1
-        if "w" in mode and self.tear is not None:
+        if _writing(mode) and self.tear is not None:
             k, tail = self.tear
             self.tear = None
             return _TornFile(f, path, old, k, tail)

@@ -25,11 +25,14 @@ OPTION_CODES = {"N2": 75, "E2": 150, "R2": 300}  # AN2 section 3.1 ordering tabl
 
 
 def random_fields(rnd):
+    """A random table a real MLX90609 could hold: full scale 50..400 deg/s, TEMPOUT 2.0..3.0 V at
+    25 degC rising 5..20 mV/K (what decode_eeprom accepts; see test_plausibility_limits)."""
     v = rnd.choice(VERSIONS)
-    rng = rnd.randint(1, 255)
+    rng = rnd.randint(10, 80)
     while True:
-        tc = [rnd.randint(0, 0xFFFF) for _ in range(3)]
-        if len(set(tc)) == 3:
+        t1 = rnd.randint(2000, 3000)
+        tc = [t1 - rnd.randint(65 * 5, 65 * 20), t1, t1 + rnd.randint(60 * 5, 60 * 20)]
+        if 300 <= tc[0] and tc[2] <= 3498:
             break
     ee_z = [rnd.randint(0, 255) for _ in range(3)]
     ee_s = [rnd.randint(0, 255) for _ in range(3)]
@@ -193,6 +196,95 @@ def test_degenerate_table(tc, msg):
 def test_wrong_cell_count():
     with pytest.raises(ValueError, match="128"):
         decode_eeprom(bytes(127))
+
+
+# ---------------------------------------------------------------- plausibility (issue 17, item 7)
+
+
+def test_random_images_are_never_taken_for_a_table():
+    """Before the limits about 1.5 % of random 128-byte images decoded as tables (38..57 voted
+    bits disagreeing, TC like 64,623 mV). A random image has 48 +- 3.5 of its 64 voted bits
+    disagreeing; the health limit is 4, so the chance one passes that check alone is below
+    1e-30: 0 of 50,000 is the expectation, not luck."""
+    rnd = random.Random(17)
+    reasons = {}
+    for _ in range(50000):
+        img = bytes(rnd.getrandbits(8) for _ in range(128))
+        with pytest.raises(ValueError) as e:
+            decode_eeprom(img)
+        key = "voted bits" if "voted bits (RANGE" in str(e.value) else str(e.value).split(":")[0]
+        reasons[key] = reasons.get(key, 0) + 1
+    print("random images refused by:", reasons)
+    assert sum(reasons.values()) == 50000
+    # and the value limits alone, with the vote check switched off, refuse them too
+    for _ in range(20000):
+        img = bytes(rnd.getrandbits(8) for _ in range(128))
+        with pytest.raises(ValueError, match="MLX90609"):
+            decode_eeprom(img, max_disagree=64)
+
+
+def test_random_fields_with_healthy_votes_are_refused_by_the_value_limits():
+    # a table whose every voted bit is unanimous and VERSION known, but RANGE and TC random:
+    # only the value limits stand in the way. P(accept) = P(RANGE 10..80) * P(three TC in
+    # 300..3498 mV, rising 5..20 mV/K, TC1 2000..3000) < 0.28 * (3199/65536)**3 ~ 3e-5.
+    rnd = random.Random(18)
+    accepted = 0
+    for n in range(20000):
+        tc = [rnd.randint(0, 0xFFFF) for _ in range(3)]
+        img = ms.encode_eeprom(rnd.choice(VERSIONS), rnd.randint(0, 255), tc, [1, 2, 3], [4, 5, 6], seed=n)
+        try:
+            decode_eeprom(img)
+            accepted += 1
+        except ValueError as e:
+            assert "VERSION" not in str(e) and "disagree" not in str(e)
+    assert accepted == 0
+
+
+def test_real_tables_are_still_accepted():
+    # AN2 prints no numeric table, so: the nominal part of sensor-facts (2.5 V at 25 degC, 10 mV/K:
+    # 1850 / 2500 / 3100 mV), the simulated parts of the tests and the virtual board, every AN2
+    # option code and VERSION, and the extremes the limits allow
+    for version in VERSIONS:
+        for fs in (75, 150, 300):
+            for tc in ((1850, 2500, 3100), (1843, 2497, 3109), (2000 - 65 * 20 + 1, 2000, 2000 + 300),
+                       (3000 - 325, 3000, 3498)):
+                t = decode_eeprom(ms.encode_eeprom(version, fs // 5, tc, (7, 128, 250), (0, 100, 255)))
+                assert t.tc == tc and t.full_scale_dps == fs and t.vote_disagreements == 0
+    t = decode_eeprom(ms.MLX90609Sim(version=2, full_scale_dps=150, zro_mv=(2440.0, 2500.0, 2570.0)).ee)
+    assert t.tc == (1850, 2500, 3100)
+
+
+@pytest.mark.parametrize("tc,rng,msg", [
+    ((1850, 2500, 64623), 30, r"TC2 = 64623 mV \(TEMPOUT at 85 degC\) is outside what the part's TEMPOUT spans \(300..3498 mV\)"),
+    ((200, 1500, 2100), 30, r"TC0 = 200 mV"),
+    ((3100, 2500, 1850), 30, r"TEMPOUT goes from 3100 mV \(TC0, -40 degC\) to 2500 mV \(TC1, 25 degC\), -9.2 mV/K"),
+    ((2400, 2500, 3100), 30, r"from 2400 mV \(TC0.*1.5 mV/K; the sensor rises about 10 mV/K \(accepted 5..20\)"),
+    ((1350, 2000, 3260), 30, r"from 2000 mV \(TC1, 25 degC\) to 3260 mV \(TC2, 85 degC\), 21.0 mV/K"),
+    ((500, 1900, 2500), 30, r"21.5 mV/K"),
+    ((1350, 1950, 2550), 30, r"TC1 = 1950 mV at 25 degC; TEMPOUT is about 2500 mV there \(accepted \+-500\)"),
+    ((1850, 2500, 3100), 0, r"full scale of 0 deg/s"),
+    ((1850, 2500, 3100), 255, r"full scale of 1275 deg/s; parts are made for 75, 150 or 300 \(accepted 50..400\)"),
+])
+def test_each_limit_names_the_problem(tc, rng, msg):
+    img = ms.encode_eeprom(2, rng, tc, (1, 2, 3), (4, 5, 6))
+    with pytest.raises(ValueError, match="implausible MLX90609 table: .*" + msg):
+        decode_eeprom(img)
+    # the same limits guard a table re-applied from the store
+    with pytest.raises(ValueError, match="implausible MLX90609 table"):
+        mlx.LookupTable.from_ints((2, rng * 5) + tc + (1, 2, 3, 4, 5, 6))
+
+
+def test_vote_health_threshold():
+    img = ms.MLX90609Sim(version=2, full_scale_dps=150).ee
+    bad = bytearray(img)
+    # one flipped copy in k different TC1 bits (cells 0x48..): the majority still reads right
+    for k in range(5):
+        bad[0x48 + k] ^= 1
+        if k < 4:
+            assert decode_eeprom(bad).vote_disagreements == k + 1
+    with pytest.raises(ValueError, match="5 of the 64 voted bits .* disagree .*accepted 4.*EEPROM is failing"):
+        decode_eeprom(bad)
+    assert decode_eeprom(bad, max_disagree=5).tc == decode_eeprom(img).tc
 
 
 # ---------------------------------------------------------------- compensation precision
@@ -410,7 +502,7 @@ def test_calibration_ints_round_trip_and_bad_records():
 
 
 def test_save_and_reapply_through_the_store(tmp_path):
-    store_mod = pytest.importorskip("tempcomp.store")  # lib/tempcomp/store.py (branch store)
+    from tempcomp import store as store_mod  # an import error fails here: never a silent skip
     sim = ms.MLX90609Sim(version=2, full_scale_dps=150, supply_shift_mv=15.0)
     gyro, _, _ = blinka_gyro(sim)
     sim.set_state(0.0, 35.0)
@@ -463,6 +555,24 @@ allocprobe.report("mlx_rate", g.rate, (), 200)
 g.temp_every = 8
 allocprobe.report("mlx_rate_every8", g.rate, (), 200)
 print("CLAMPED", g.health()["tempout_clamped"])
+
+# 4. the plausibility limits in the VM: random images and an implausible table refused
+x = 12345
+refused = 0
+for n in range(300):
+    img = bytearray(128)
+    for i in range(128):
+        x = (x * 1103515245 + 12345) & 0x7FFFFFFF
+        img[i] = x >> 16 & 0xFF
+    try:
+        decode_eeprom(img)
+    except ValueError:
+        refused += 1
+print("REFUSED", refused)
+try:
+    decode_eeprom(ms.encode_eeprom(2, 30, (1850, 2500, 64623), (1, 2, 3), (4, 5, 6)))
+except ValueError as e:
+    print("IMPLAUSIBLE", str(e))
 """
 
 
@@ -493,6 +603,8 @@ def test_in_the_micropython_vm(mpvm):
     sim2.schedule([(-140.0 + 7.7 * i, -60.0 + 4.6 * i) for i in range(37)])
     assert lines["RATES"] == str([g.rate() for _ in range(37)])
     assert int(lines["CLAMPED"]) > 0  # the schedule reaches below TC0 - 150 mV on purpose
+    assert lines["REFUSED"] == "300"
+    assert lines["IMPLAUSIBLE"].startswith("implausible MLX90609 table: TC2 = 64623 mV")
     alloc = _mpvm.alloc_lines(out)
     assert alloc["mlx_rate"] == (0.0, True)
     assert alloc["mlx_rate_every8"] == (0.0, True)

@@ -59,6 +59,12 @@ _RANGE_SHIFT = const(0)
 _RANGE_UNIT_DPS = const(5)
 _MAJORITY = const(0xE8)  # bit v set when the 3-bit copy pattern v has two or more ones
 _KNOWN_VERSIONS = (1, 2, 3, 255)
+_VOTED_BITS = const(64)  # RANGE 8 + VERSION 8 + TC 3 x 16
+# Vote health: one flipped copy per voted bit is what voting corrects; many disagreeing bits
+# mean a failing EEPROM or no table at all (a random image has 48 +- 3.5 of 64). With d
+# disagreements out of 64, the expected number of bits whose majority is itself wrong is about
+# d**2 / 192 (two of three copies flipped): 0.08 at d = 4, 0.33 at d = 8.
+MAX_DISAGREE = const(4)
 
 # --- SPI instructions, datasheet rev 007 p.13 (see reference/sensor-facts.md) ---
 _STATR = const(0x88)
@@ -79,6 +85,23 @@ _TEMP_OFFSET_MV = const(300)
 _CODE_MAX = const(2047)
 _SWING_MV = const(2000)  # full scale swings the output +-2 V around 2.5 V
 _DIGITAL_PER_MV = 12.0 / 25.0  # rate LSB per mV
+
+# --- plausibility of a table (reference/sensor-facts.md; AN2 sections 3.1 and 3.3) ---
+# TC0..2 are TEMPOUT in mV at -40, 25 and 85 degC: 2.5 V at 25 degC rising 10 mV/K [C, U].
+# They must lie where the part's own TEMPOUT conversion reads (25/16 * code + 300 mV, code
+# 0..2047: 300..3498 mV), rise with temperature at a slope within a factor of two of 10 mV/K on
+# each step, and put 25 degC within 500 mV (50 K) of 2.5 V.
+_TEMPOUT_MIN_MV = const(300)
+_TEMPOUT_MAX_MV = const(3498)
+_TC_TEMPS = (-40, 25, 85)
+_TC_SLOPE_MIN = const(5)  # mV/K
+_TC_SLOPE_MAX = const(20)
+_TC1_NOMINAL_MV = const(2500)
+_TC1_TOLERANCE_MV = const(500)
+# Full scale = 5 * RANGE: AN2's ordering table has 75, 150 and 300 deg/s parts; 50..400 leaves
+# room for a custom trim and refuses what no MLX90609 is.
+_FS_MIN_DPS = const(50)
+_FS_MAX_DPS = const(400)
 
 _RETRIES = const(8)  # refusal answers tolerated per instruction
 _POLLS = const(200)  # ADCR polls before a conversion counts as stuck (~115 us needed)
@@ -150,6 +173,34 @@ class LookupTable:
                     "degenerate MLX90609 table: TC%d = TC%d = %d mV, so T0*T1*T2 = 0 in AN2 "
                     "equations 5-13 and no quadratic passes through the triplets%s" % (i, j, tc[i], self._damage())
                 )
+        for i in range(3):
+            if not _TEMPOUT_MIN_MV <= tc[i] <= _TEMPOUT_MAX_MV:
+                raise ValueError(
+                    "implausible MLX90609 table: TC%d = %d mV (TEMPOUT at %d degC) is outside what the "
+                    "part's TEMPOUT spans (%d..%d mV)%s"
+                    % (i, tc[i], _TC_TEMPS[i], _TEMPOUT_MIN_MV, _TEMPOUT_MAX_MV, self._damage())
+                )
+        for i in (0, 1):
+            dk = _TC_TEMPS[i + 1] - _TC_TEMPS[i]
+            slope = (tc[i + 1] - tc[i]) / dk
+            if not _TC_SLOPE_MIN <= slope <= _TC_SLOPE_MAX:
+                raise ValueError(
+                    "implausible MLX90609 table: TEMPOUT goes from %d mV (TC%d, %d degC) to %d mV (TC%d, "
+                    "%d degC), %.1f mV/K; the sensor rises about 10 mV/K (accepted %d..%d)%s"
+                    % (tc[i], i, _TC_TEMPS[i], tc[i + 1], i + 1, _TC_TEMPS[i + 1], slope, _TC_SLOPE_MIN,
+                       _TC_SLOPE_MAX, self._damage())
+                )
+        if abs(tc[1] - _TC1_NOMINAL_MV) > _TC1_TOLERANCE_MV:
+            raise ValueError(
+                "implausible MLX90609 table: TC1 = %d mV at 25 degC; TEMPOUT is about %d mV there "
+                "(accepted +-%d)%s" % (tc[1], _TC1_NOMINAL_MV, _TC1_TOLERANCE_MV, self._damage())
+            )
+        fs = self.full_scale_dps
+        if not _FS_MIN_DPS <= fs <= _FS_MAX_DPS:
+            raise ValueError(
+                "implausible MLX90609 table: RANGE gives a full scale of %d deg/s; parts are made for "
+                "75, 150 or 300 (accepted %d..%d)%s" % (fs, _FS_MIN_DPS, _FS_MAX_DPS, self._damage())
+            )
         for name, vals in (("ee_zro", self.ee_zro), ("ee_sf", self.ee_sf)):
             for x in vals:
                 if not 0 <= x <= 255:
@@ -203,10 +254,12 @@ class LookupTable:
         return t
 
 
-def decode_eeprom(cells):
+def decode_eeprom(cells, max_disagree=MAX_DISAGREE):
     """Decode the 128 EEPROM bytes (cell i at index i) into a LookupTable (AN2 section 3).
 
-    Raises ValueError for VERSION 0 (no table), an unknown VERSION, or a degenerate table.
+    Raises ValueError for VERSION 0 (no table), an unknown VERSION, more than max_disagree of
+    the 64 voted bits not unanimous, or a table no MLX90609 has (TC outside TEMPOUT's span,
+    not rising about 10 mV/K, full scale outside 50..400 deg/s, degenerate).
     ``vote_disagreements`` counts voted bits whose three copies were not unanimous: 0 on a
     healthy part; a growing count means the EEPROM is degrading (one flipped copy is still
     corrected, two are not).
@@ -223,6 +276,12 @@ def decode_eeprom(cells):
         d += dv
     ee_zro = [_single(cells, _EE_ZRO_FIRST + 8 * i, 8, _EE_BIT) for i in range(3)]
     ee_sf = [_single(cells, _EE_SF_FIRST + 8 * i, 8, _EE_BIT) for i in range(3)]
+    if d > max_disagree:
+        raise ValueError(
+            "MLX90609 EEPROM: %d of the %d voted bits (RANGE, VERSION, TC) disagree between their "
+            "three copies (accepted %d): the EEPROM is failing or holds no AN2 table; calibrate with "
+            "the three-point tools instead" % (d, _VOTED_BITS, max_disagree)
+        )
     table = LookupTable(version, rng * _RANGE_UNIT_DPS, tc, ee_zro, ee_sf, d)
     table.check()
     return table

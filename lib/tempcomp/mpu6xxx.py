@@ -17,12 +17,16 @@ Units: gyro offset registers count 1/32.8 dps (the +-1000 dps unit) whatever the
 offset registers are 16-bit words in 2048 LSB/g (bits 15..1, 0.98 mg a step) whose bit 0 is
 reserved and always kept as the part holds it. Temperatures are hundredths of a degC.
 
-Errors: ``OSError`` (``MPUError``) for bus faults, a part that moved or is not lying on a face
-during capture, or a read-back that differs from what was written; ``ValueError`` for bad
-arguments. A failure while writing offsets restores the previous ones before raising, and the
-user's sensor configuration is restored after every capture.
+Errors: ``OSError`` (``MPUError``) for bus faults, a part that moved, turned (gravity moving,
+or a gyro bias beyond its datasheet zero-rate range) or is not lying on a face during capture,
+reads that are implausible or do not agree when repeated, or a read-back that differs from
+what was written; ``ValueError`` for bad arguments. A failure while writing offsets restores
+the previous ones before raising, and the user's sensor configuration is restored after every
+capture. ``check(every_ms=1000)`` in a loop keeps the offsets on parts that change their trim
+by themselves (ICM-20602).
 """
 
+import time as _time
 from array import array
 
 from tempcomp.bus import I2CDevice
@@ -39,6 +43,8 @@ from tempcomp.mpu6xxx_parts import (
     TEMP_SENS,
     TEMP_ZERO,
     WHO_AM_I,
+    ZRO_DPS,
+    ZRO_SPAN_DPS,
     by_name,
     by_who_am_i,
     names,
@@ -58,6 +64,30 @@ except ImportError:
 
     def _warn(msg):
         print("tempcomp.mpu6xxx warning:", msg)
+
+
+# a millisecond clock for check(every_ms=): MicroPython's ticks, CircuitPython's supervisor
+# ticks (they wrap at 2**29), else the monotonic clock
+try:
+    import supervisor as _supervisor  # pyright: ignore[reportMissingImports]
+except ImportError:
+    _supervisor = None
+
+
+def _ticks_ms():
+    f = getattr(_time, "ticks_ms", None) or getattr(_supervisor, "ticks_ms", None)
+    if f is not None:
+        return f()
+    return int(_time.monotonic() * 1000)  # pyright: ignore[reportAttributeAccessIssue]
+
+
+def _ticks_diff(a, b):
+    f = getattr(_time, "ticks_diff", None)
+    if f is not None:
+        return f(a, b)
+    if _supervisor is not None:
+        return ((a - b + 0x10000000) & 0x1FFFFFFF) - 0x10000000
+    return a - b
 
 
 # Register map (RM-MPU-6000A / RM-MPU-9250)
@@ -95,6 +125,15 @@ _MAX_IDLE = const(5000)  # FIFO_COUNT polls without a new packet before giving u
 _MAX_RESETS = const(4)
 _RETRIES = const(3)
 _T_QUANT = const(8)  # per-sample temperature compensation steps of 8 LSB (~0.024 degC)
+# Plausibility of what is read during calibration (issue 17: one corrupted, not NACKed, read
+# must not become a wrong calibration). Registers are re-read until two reads agree.
+_READS = const(4)  # re-reads after the first before giving up
+_T_AGREE = const(64)  # two temperature reads agree within 64 LSB (~0.2 degC)
+# A sample is an outlier when it lies farther on one side of the mean than 4x the farthest one
+# on the other side, plus 16 LSB (0.12 deg/s, 1 mg): Gaussian noise never does that (0 of
+# 20,000 simulated captures of 20..1000 samples), a corrupted read or a knock does.
+_OUTLIER_RATIO = const(4)
+_OUTLIER_FLOOR = const(16)
 
 
 class MPUError(OSError):
@@ -160,6 +199,8 @@ class MPU6xxx:
         # one view per packet count so a FIFO read never slices (slicing allocates)
         self._views = [mv[: k * self._pkt] for k in range(_BATCH + 1)]
         self._sum = array("i", [0] * 6)
+        self._sum1 = array("i", [0] * 6)  # sums of the first half of a capture (turn check)
+        self._n1 = 0
         self._min = array("i", [0] * 6)
         self._max = array("i", [0] * 6)
         self._n = 0
@@ -172,17 +213,33 @@ class MPU6xxx:
         self._cg = None
         self._follow_t = None
         self._target = None
+        self._checked = None  # ticks_ms of the last check(every_ms=...)
+        self.trim_changes = 0  # offset registers the part changed by itself, found by check()
         # the accel offsets hold the factory trim after power-on: read it once, here
         self.factory = self.offsets()[1]
 
     # ---- offsets ----------------------------------------------------------------------------
-    def _read_offsets(self):
-        out = [0] * 6
+    def _read_offsets_once(self, out):
         b = self._b2
         for i in range(6):
             self._dev.read_into(self._oregs[i], b)
             out[i] = _s16(b[0], b[1])
-        return out
+
+    def _read_offsets(self):
+        # Every offset written is computed from, or checked against, what is read here: read
+        # until two reads in a row agree, so one corrupted read cannot become the base.
+        a = [0] * 6
+        b = [0] * 6
+        self._read_offsets_once(a)
+        for _ in range(_READS):
+            self._read_offsets_once(b)
+            if a == b:
+                return a
+            a, b = b, a
+        raise MPUError(
+            "offset registers read differently %d times in a row (bus noise? check pull-ups and "
+            "wiring); nothing written" % (_READS + 1)
+        )
 
     def offsets(self):
         """((gx, gy, gz), (ax, ay, az)) the part holds: signed register values."""
@@ -196,6 +253,8 @@ class MPU6xxx:
         self._dev.write(reg, w)
         b = self._b2
         self._dev.read_into(reg, b)
+        if b[0] != w[0] or b[1] != w[1]:
+            self._dev.read_into(reg, b)  # a corrupted read-back is not a failed write: ask again
         if b[0] != w[0] or b[1] != w[1]:
             raise MPUError(
                 "register 0x%02x reads back 0x%02x%02x after writing 0x%02x%02x" % (reg, b[0], b[1], w[0], w[1])
@@ -254,12 +313,19 @@ class MPU6xxx:
         self._target = words
         return (tuple(words[:3]), tuple(words[3:]))
 
-    def check(self):
+    def check(self, every_ms=None):
         """Re-write offsets the part changed by itself (ICM-20602); return how many it had changed.
 
         Compares with what was last written, or with the factory trim read at start-up if
-        nothing was written yet.
+        nothing was written yet. With every_ms, call it from your loop as often as you like:
+        it reads the part only when every_ms have passed since its last check (else returns 0).
         """
+        if every_ms is not None:
+            now = _ticks_ms()
+            last = self._checked
+            if last is not None and _ticks_diff(now, last) < every_ms:
+                return 0
+            self._checked = now
         cur = self._read_offsets()
         want = self._target
         if want is None:
@@ -270,16 +336,28 @@ class MPU6xxx:
                 n += 1
         if n:
             self._write_offsets(want)
+            self.trim_changes += n
         return n
 
     # ---- capture ----------------------------------------------------------------------------
-    def _save_config(self):
+    def _read_config(self):
         d = self._dev
         d.read_into(_SMPLRT_DIV, memoryview(self._cfg)[: self._ncfg])
         d.read_into(_USER_CTRL, self._ctl)
         fifo_en = d.read_u8(_FIFO_EN)
         int_en = d.read_u8(_INT_ENABLE)
         return (bytes(self._cfg), bytes(self._ctl), fifo_en, int_en)
+
+    def _save_config(self):
+        # what is given back after the capture: two reads in a row must agree
+        prev = self._read_config()
+        for _ in range(_READS):
+            cur = self._read_config()
+            if cur == prev:
+                return cur
+            prev = cur
+        raise MPUError("configuration registers read differently %d times in a row (bus noise?); "
+                       "nothing changed" % (_READS + 1))
 
     def _write_u8(self, reg, v):
         self._w1[0] = v
@@ -350,6 +428,10 @@ class MPU6xxx:
         b = self._b2
         d.read_into(_FIFO_COUNTH, b)
         c = (b[0] & 0x1F) << 8 | b[1]  # 13-bit count on the MPU-6500 family, < 1024 on the 6050
+        if c >= self._fifo_limit or c % self._pkt:
+            # beyond the FIFO or not whole packets: a corrupted read? ask again before acting
+            d.read_into(_FIFO_COUNTH, b)
+            c = (b[0] & 0x1F) << 8 | b[1]
         if c >= self._fifo_limit:
             # near full: a FIFO that overflows drops bytes and the packets lose alignment
             self._resets += 1
@@ -420,9 +502,13 @@ class MPU6xxx:
         try:
             self._start_capture()
             self._begin(packets, settle_ms)  # 1 kHz: one packet a millisecond
+            self._n1 = 0
+            half = packets // 2
             while self._got < self._need:
                 self._poll()
-            t = self.temp_raw()
+                if self._n1 == 0 and self._n >= half:
+                    self._split()
+            t = self._temp_agreed()
         except BaseException as e:
             bad = self._restore_config(saved)
             if bad is not None:
@@ -435,7 +521,31 @@ class MPU6xxx:
             raise MPUError("only %d packets captured, at least %d needed" % (self._n, MIN_PACKETS))
         return t
 
-    def _analyse(self, cur, gyro_spread_dps, accel_spread_mg, max_tilt_mg):
+    def _split(self):
+        # sums so far: the first part of the capture, for the turn check in _analyse
+        for j in range(6):
+            self._sum1[j] = self._sum[j]
+        self._n1 = self._n
+
+    def _temp_agreed(self):
+        a = self.temp_raw()
+        for _ in range(_READS):
+            b = self.temp_raw()
+            if -_T_AGREE <= b - a <= _T_AGREE:
+                return b
+            a = b
+        raise MPUError("TEMP_OUT read differently %d times in a row (bus noise?)" % (_READS + 1))
+
+    def zro_limit_dps(self, t_raw=None):
+        """The gyro bias (deg/s) this part may have at rest at TEMP_OUT reading t_raw (default:
+        read now, the part awake): its datasheet initial tolerance plus the variation over
+        temperature away from 25 degC (mpu6xxx_parts ZRO_DPS, ZRO_SPAN_DPS)."""
+        row = self._row
+        dt = abs(self.temp_c100(t_raw) - 2500) / 100.0
+        return row[ZRO_DPS] + row[ZRO_SPAN_DPS] * dt / 60.0  # the span covers 25 -> -40/+85 degC
+
+    def _analyse(self, cur, gyro_spread_dps, accel_spread_mg, max_tilt_mg, t=None, max_bias_dps=None,
+                 max_turn_dps=1):
         # -> (gravity axis, its expected output at +-2 g); raises on an unusable capture.
         # Gravity and tilt are judged on what the part reads with its factory trim, so
         # offsets written earlier (even far off) don't hide the face it lies on.
@@ -458,8 +568,20 @@ class MPU6xxx:
                 shown, unit, limit = spread // _GYRO_LSB_DPS, "dps", gyro_spread_dps
             if spread > lim:
                 raise MPUError(
-                    "the part moved during capture: %s spread %d %s (limit %d); keep it still"
-                    % (axes[j], shown, unit, limit)
+                    "the part moved during capture (or a bus read was corrupted): %s spread %d %s "
+                    "(limit %d); keep it still and try again; nothing written" % (axes[j], shown, unit, limit)
+                )
+        for j in range(6):
+            # a lone sample far on one side: a corrupted read (or a knock) the spread allows
+            mean = s[j] / n
+            up = self._max[j] - mean
+            dn = mean - self._min[j]
+            far, near = (up, dn) if up > dn else (dn, up)
+            if far > _OUTLIER_RATIO * near + _OUTLIER_FLOOR:
+                raise MPUError(
+                    "%s: one sample lies %d LSB from the mean while the others stay within %d: "
+                    "a corrupted bus read or a knock; nothing written, try again"
+                    % (axes[j], far, near)
                 )
         fac = self.factory
         m = [s[j] // n - ((cur[3 + j] >> 1) - (fac[j] >> 1)) * 2 * _ACCEL_STEP for j in range(3)]
@@ -478,19 +600,87 @@ class MPU6xxx:
                     "not lying on a face: accel x/y/z read %d/%d/%d mg; lay it flat (limit %d mg off-axis)"
                     % (mg[0], mg[1], mg[2], max_tilt_mg)
                 )
+        self._check_turn(g, max_turn_dps)
+        self._check_bias(cur, t, max_bias_dps)
         return g, (_ACCEL_LSB_G if m[g] > 0 else -_ACCEL_LSB_G)
 
-    def calibrate(self, packets=1000, settle_ms=50, gyro_spread_dps=5, accel_spread_mg=150, max_tilt_mg=150):
+    def _check_turn(self, g, max_turn_dps):
+        # A steady turn has no spread to speak of, but gravity moves in the part's frame: compare
+        # the accel mean of the two parts of the capture on the axes across gravity. Noise: a
+        # sample's sigma is at most half the spread, so the difference of the two means has
+        # sigma <= spread/2 * sqrt(1/n1 + 1/n2); four of those are allowed. (A turn about the
+        # vertical leaves gravity alone: _check_bias and a second face catch that one.)
+        if max_turn_dps is None:
+            return
+        n1 = self._n1
+        n2 = self._n - n1
+        if n1 <= 0 or n2 <= 0:
+            return
+        s = self._sum
+        s1 = self._sum1
+        d2 = 0.0
+        v2 = 0.0
+        for j in range(3):
+            if j != g:
+                d = (s[j] - s1[j]) / n2 - s1[j] / n1
+                d2 += d * d
+                v2 += ((self._max[j] - self._min[j]) / 2.0) ** 2 * (1.0 / n1 + 1.0 / n2)
+        d = d2**0.5
+        if d * d <= 16.0 * v2:
+            return
+        dps = d / _ACCEL_LSB_G * 57.29578 / (self._n / 2000.0)  # the two parts' centres are n/2 ms apart
+        if dps > max_turn_dps:
+            raise MPUError(
+                "the part turned during capture: gravity moved %.2f deg in %.2f s (%.1f deg/s, limit "
+                "%s); keep it still; nothing written" % (d / _ACCEL_LSB_G * 57.29578, self._n / 2000.0, dps,
+                                                       max_turn_dps)
+            )
+
+    def _check_bias(self, cur, t, max_bias_dps):
+        # A turn about the vertical shows only as a gyro bias no part at rest has (datasheet
+        # ZRO tolerance, widened with the temperature away from 25 degC).
+        lim = max_bias_dps
+        if lim is None:
+            lim = self.zro_limit_dps(t)
+        n = self._n
+        for k in range(3):
+            # output at +-250 dps = bias + 4 LSB per register LSB already in the part
+            dps = (self._sum[3 + k] / n - _GYRO_STEP * cur[k]) / _GYRO_LSB_DPS
+            if abs(dps) > lim:
+                raise MPUError(
+                    "gyro %s reads %+.1f deg/s at rest, more than this %s's zero-rate offset can be "
+                    "(+-%.1f deg/s at %.1f degC): was the board turning? Nothing written. (A part outside "
+                    "its datasheet: pass max_bias_dps=)" % ("xyz"[k], dps, self.part, lim,
+                                                             self.temp_c100(t) / 100.0)
+                )
+
+    def _capture_at_rest(self, packets, settle_ms):
+        # -> (temperature, offsets held); the offsets must not change during the capture (an
+        # ICM-20602 rewriting its trim mid-capture would mix two biases)
+        before = self._read_offsets()
+        t = self._capture(packets, settle_ms)
+        cur = self._read_offsets()
+        if cur != before:
+            self.trim_changes += 1
+            raise MPUError(
+                "offset registers changed during the capture (%r -> %r): the part rewrote its trim "
+                "(a known ICM-20602 fault); nothing written, try again" % (before, cur)
+            )
+        return t, cur
+
+    def calibrate(self, packets=1000, settle_ms=50, gyro_spread_dps=5, accel_spread_mg=150, max_tilt_mg=150,
+                  max_bias_dps=None, max_turn_dps=1):
         """Capture ``packets`` samples at rest (1 kHz), write and verify the offsets.
 
         Lay the part still on any face (up or down). Returns ((gx, gy, gz), (ax, ay, az))
         register values as ``offsets()`` reads them. Raises MPUError if it moved (spread over
-        the limits), is not lying on a face, or the bus failed: the previous offsets and the
-        sensor configuration are then left in place.
+        the limits), turned (gravity moved by more than max_turn_dps, or a gyro bias beyond the
+        part's datasheet range, ``zro_limit_dps()``, or max_bias_dps), is not lying on a face,
+        a read was implausible, or the bus failed: the previous offsets and the sensor
+        configuration are then left in place.
         """
-        self._capture(packets, settle_ms)
-        cur = self._read_offsets()
-        g, e = self._analyse(cur, gyro_spread_dps, accel_spread_mg, max_tilt_mg)
+        t, cur = self._capture_at_rest(packets, settle_ms)
+        g, e = self._analyse(cur, gyro_spread_dps, accel_spread_mg, max_tilt_mg, t, max_bias_dps, max_turn_dps)
         n = self._n
         s = self._sum
         words = [0] * 6
@@ -505,16 +695,17 @@ class MPU6xxx:
         self._target = words
         return (tuple(words[:3]), tuple(words[3:]))
 
-    def bias_point(self, packets=1000, settle_ms=50, gyro_spread_dps=5, accel_spread_mg=150, max_tilt_mg=150):
+    def bias_point(self, packets=1000, settle_ms=50, gyro_spread_dps=5, accel_spread_mg=150, max_tilt_mg=150,
+                   max_bias_dps=None, max_turn_dps=1):
         """Capture at rest at the present temperature; write nothing.
 
         Returns (t_raw, (gx, gy, gz), (ax, ay, az)): the raw temperature reading and, as floats,
         the register values that would zero the bias now (gyro register LSB, accel word LSB).
-        Collect points at several temperatures for ``tempcomp.mpu6xxx_tc.BiasModel``.
+        Collect points at several temperatures for ``tempcomp.mpu6xxx_tc.BiasModel``. The
+        capture is checked as calibrate() checks it.
         """
-        t = self._capture(packets, settle_ms)
-        cur = self._read_offsets()
-        g, e = self._analyse(cur, gyro_spread_dps, accel_spread_mg, max_tilt_mg)
+        t, cur = self._capture_at_rest(packets, settle_ms)
+        g, e = self._analyse(cur, gyro_spread_dps, accel_spread_mg, max_tilt_mg, t, max_bias_dps, max_turn_dps)
         n = self._n
         s = self._sum
         gy = tuple(cur[k] - s[3 + k] / (_GYRO_STEP * n) for k in range(3))
@@ -631,8 +822,12 @@ class MPU6xxx:
 
     # ---- persistence --------------------------------------------------------------------------
     def to_ints(self):
-        """[WHO_AM_I, gyro x y z, accel x y z, factory x y z]: what a coefficient store keeps."""
-        o = self._read_offsets()
+        """[WHO_AM_I, gyro x y z, accel x y z, factory x y z]: what a coefficient store keeps.
+
+        The offsets are the ones last written (and verified) when there are any, so a trim the
+        part changed by itself since (ICM-20602) is never saved; else what the part holds.
+        """
+        o = list(self._target) if self._target is not None else self._read_offsets()
         return [self.who_am_i] + o + list(self.factory)
 
     def apply_ints(self, ints):
@@ -647,20 +842,35 @@ class MPU6xxx:
         fac = tuple(ints[7:10])
         if fac != tuple(self.factory):
             held = tuple(self._read_offsets()[3:])
+            diff = [k for k in range(3) if fac[k] != self.factory[k]]
             if held == tuple(ints[4:7]):
                 # warm restart: the part kept our offsets, so what we read as factory was not
                 self.factory = fac
+            elif self.part == "ICM-20602" and diff == [1]:
+                # the known fault: the part rewrote its Y trim (now, or when the record was
+                # made). The saved offsets are absolute words, right whatever the register held.
+                self.trim_changes += 1
+                _warn("ICM-20602 accel y trim reads %d, saved factory value %d: the part changed it by "
+                      "itself (a known ICM-20602 fault); the saved offsets are written back, call "
+                      "check(every_ms=1000) from your loop to keep them" % (self.factory[1], fac[1]))
             else:
                 _warn("factory trim %r differs from the saved %r: a different part?" % (self.factory, fac))
         return self.apply(ints[1:4], ints[4:7])
 
     def save(self, store, name="mpu6xxx"):
-        """store.save(name, to_ints()) with a tempcomp.store.Store."""
+        """store.save(name, to_ints()) with a tempcomp.store.Store, after check()."""
+        self.check()
         store.save(name, self.to_ints())
 
     def restore(self, store, name="mpu6xxx"):
-        """Re-apply offsets saved with save(); returns them."""
-        return self.apply_ints(store.load(name))
+        """Re-apply offsets saved with save() (verified); returns them.
+
+        Compares the factory trim the part loaded with the saved one first (apply_ints), and
+        starts the clock of check(every_ms=...), which keeps them from then on.
+        """
+        out = self.apply_ints(store.load(name))
+        self._checked = _ticks_ms()
+        return out
 
 
 def _clamp_gyro(axis, v):

@@ -32,18 +32,25 @@ FIFO_EN_BITS = const(7)  # FIFO_EN value that enables accel + all gyro axes
 TEMP_SENS = const(8)  # temperature sensitivity, hundredths of LSB per degC
 TEMP_ZERO = const(9)  # temperature at raw 0, hundredths of degC
 ACCEL_CONFIG2 = const(10)  # 1 if register 0x1D is ACCEL_CONFIG2 (accel DLPF)
+ZRO_DPS = const(11)  # datasheet initial zero-rate output tolerance at 25 degC, +- deg/s
+ZRO_SPAN_DPS = const(12)  # datasheet ZRO variation over -40..85 degC, +- deg/s
 
 # T = raw / 340 + 36.53 (MPU-6050 PS 6.4), raw / 333.87 + 21 (MPU-6500/9250 PS),
 # raw / 326.8 + 25 (ICM-20602/20608, Linux INV_ICM20608_TEMP_SCALE/OFFSET).
+# Zero-rate output (gyro bias) the part may have at rest: a larger one means it was turning.
+# [V] PS-MPU-6000A-00 rev 3.4 sec. 6.1: initial ZRO tolerance +-20 deg/s, variation over
+# -40..85 degC +-20 deg/s (typical column). [V] PS-MPU-9250A-01 rev 1.0 sec. 3.1: +-5 and +-30.
+# [U] MPU-6500, ICM-20608, ICM-20602: taken as the MPU-9250's (the same gyro generation; the
+# ICM-20602 is specified tighter, about +-1 deg/s, so this errs towards accepting).
 PARTS = (
-    ("MPU-6050", 0x68, 0x06, 2, 1024, 12, 6, 0x78, 34000, 3653, 0),
-    ("MPU-9150", 0x68, 0x06, 2, 1024, 12, 6, 0x78, 34000, 3653, 0),
-    ("MPU-6500", 0x70, 0x77, 3, 512, 12, 6, 0x78, 33387, 2100, 1),
-    ("MPU-9250", 0x71, 0x77, 3, 512, 12, 6, 0x78, 33387, 2100, 1),
-    ("MPU-9255", 0x73, 0x77, 3, 512, 12, 6, 0x78, 33387, 2100, 1),
-    ("ICM-20608", 0xAF, 0x77, 3, 512, 12, 6, 0x78, 32680, 2500, 1),
+    ("MPU-6050", 0x68, 0x06, 2, 1024, 12, 6, 0x78, 34000, 3653, 0, 20, 20),
+    ("MPU-9150", 0x68, 0x06, 2, 1024, 12, 6, 0x78, 34000, 3653, 0, 20, 20),
+    ("MPU-6500", 0x70, 0x77, 3, 512, 12, 6, 0x78, 33387, 2100, 1, 5, 30),
+    ("MPU-9250", 0x71, 0x77, 3, 512, 12, 6, 0x78, 33387, 2100, 1, 5, 30),
+    ("MPU-9255", 0x73, 0x77, 3, 512, 12, 6, 0x78, 33387, 2100, 1, 5, 30),
+    ("ICM-20608", 0xAF, 0x77, 3, 512, 12, 6, 0x78, 32680, 2500, 1, 5, 30),
     # FIFO_EN bit 4 enables all gyro axes, bit 3 the accel; TEMP_OUT rides along (14 bytes)
-    ("ICM-20602", 0x12, 0x77, 3, 1008, 14, 8, 0x18, 32680, 2500, 1),
+    ("ICM-20602", 0x12, 0x77, 3, 1008, 14, 8, 0x18, 32680, 2500, 1, 5, 30),
 )
 
 

@@ -7,6 +7,7 @@
     s = restore(tempcomp_board)      # finds the parts, re-applies what the session saved
     s.show()                         # one line: temperature and compensated rates
     s.mpu.read_compensated(buf)      # per sample (mg, mdps): zero allocation
+    s.mpu.check(every_ms=1000)       # in your loop: re-writes a trim the part changed (ICM-20602)
     s.mlx.rate()                     # milli-deg/s, zero allocation
     s.adxrs.rate()                   # milli-deg/s, zero allocation
 
@@ -38,6 +39,7 @@ _VT_MIN_MV = 1000  # a temperature output outside this window means no analog gy
 _VT_MAX_MV = 4000
 _GYRO_REG_OUT = 4  # one gyro offset register LSB moves the +-250 dps output by 4 LSB
 _GYRO_LSB_DPS = 131.0
+_CHECK_MS = 1000  # read() re-checks the MPU's offset registers at most this often
 
 
 class Sensors:
@@ -82,6 +84,8 @@ class Sensors:
             b = self._buf
             comp = [0.0, 0.0, 0.0]
             raw = [0, 0, 0]
+            if mpu._target is not None:  # offsets written here: keep them (ICM-20602 trim)
+                mpu.check(every_ms=_CHECK_MS)
             regs = mpu.offsets()[0]
             tc = self.model is not None
             for _ in range(n):
@@ -206,4 +210,7 @@ def restore(board, path=STORE_PATH, which=ALL, verbose=True):
                 print("  %s: nothing saved, uncalibrated" % name)
         for name in s.missing:
             print("  %s" % s.missing[name])
+        if mpu is not None and MPU in s.restored and mpu.part == "ICM-20602":
+            print("  ICM-20602: it can rewrite its accel trim by itself; call s.mpu.check(every_ms=1000) "
+                  "from your loop to keep the offsets (read() and show() do)")
     return s

@@ -19,9 +19,16 @@ After a reset, ONE call re-applies everything: ``tempcomp.session.restore(tempco
 (the same as ``tempcomp.sensors.restore``).
 
 Every capture is checked, by the drivers' own checks where they have them (the MPU's "moved
-during capture", "saturated", "not lying on a face", "too few packets") and here for the
+during capture", "turned during capture", "gyro bias beyond the part's datasheet range",
+"saturated", "not lying on a face", "too few packets", implausible reads) and here for the
 MLX90609 and the analog gyro (rate spread, saturated codes). A failed step prints the reason
 and asks: [r]edo (default), [s]kip the step, [q]uit. Nothing is saved before the end.
+
+A steady turn about the vertical leaves gravity where it is, and below the part's zero-rate
+tolerance (MPU-6050: 20 deg/s) it looks like bias; the check on another face catches it: after
+the zero, the gyro must read within ``max_residual_dps`` on the +x face, else the session says
+so and offers to redo the zero (the previous offsets are put back first). An ICM-20602 that
+rewrites its accel trim during the session is found by ``check()`` before saving.
 
 Scripted (tests, ``make demo``, a rig): ``answers`` is a list of replies used instead of
 input() (an exhausted list answers with each prompt's default), ``hook(step, attempt)`` runs
@@ -109,12 +116,14 @@ class Session:
     temperature only, no waiting). step_c: least temperature change between points, degC.
     wait_s: how long to wait for each change before asking. packets: MPU capture length
     (1 kHz samples); samples: MLX90609 and analog gyro samples per capture. max_bias_dps:
-    a larger MPU gyro bias means the board turned (MPU-6050 zero-rate tolerance +-20 deg/s).
+    a larger MPU gyro bias means the board turned (None: the part's datasheet zero-rate
+    range, ``MPU6xxx.zro_limit_dps()``). max_residual_dps: the most the gyro may read on the
+    +x face after the zero before the zero is called into doubt.
     """
 
     def __init__(self, board, store_path=_sensors.STORE_PATH, which=_sensors.ALL, answers=None,
                  hook=None, pause_s=0, points=3, step_c=5.0, wait_s=900, packets=1000, samples=256,
-                 max_tries=5, max_bias_dps=20):
+                 max_tries=5, max_bias_dps=None, max_residual_dps=1.0):
         if points < 1:
             raise ValueError("points must be >= 1, got %r" % (points,))
         if not step_c > 0:
@@ -132,6 +141,8 @@ class Session:
         self.samples = samples
         self.max_tries = max_tries
         self.max_bias_dps = max_bias_dps
+        self.max_residual_dps = max_residual_dps
+        self._attempts = {}  # hook attempt numbers per step, counted across redo loops
         self.s = _sensors.Sensors(board)  # the parts, found when run() starts
         self.result = {}  # type: dict
 
@@ -163,7 +174,9 @@ class Session:
                 print("  starting in %d s" % self.pause_s)
                 time.sleep(self.pause_s)
             if self.hook is not None:
-                self.hook(name, tries)
+                n = self._attempts.get(name, 0) + 1
+                self._attempts[name] = n
+                self.hook(name, n)
             try:
                 return action()
             except OSError as e:  # the drivers' and our capture checks, bus faults
@@ -181,24 +194,16 @@ class Session:
 
     # ---- captures ---------------------------------------------------------------------------
     def _mpu_calibrate(self, mpu):
-        before = mpu.offsets()
+        # calibrate() refuses a turn (gravity moving, or a bias beyond max_bias_dps / the part's
+        # datasheet range) before it writes anything
         p = Progress("MPU-6xxx  ", self.packets)
-        regs = mpu.calibrate(packets=self.packets)
+        regs = mpu.calibrate(packets=self.packets, max_bias_dps=self.max_bias_dps)
         p.done(self.packets)
-        # a steady turn has no spread for calibrate() to see, but a bias no part has
-        for k in range(3):
-            dps = -regs[0][k] / _GYRO_REG_DPS
-            if abs(dps) > self.max_bias_dps:
-                mpu.apply(before[0], before[1])
-                raise CaptureError(
-                    "gyro %s reads %+.1f deg/s at rest, more than a zero-rate offset can be "
-                    "(limit %d): was the board turning? Previous offsets kept"
-                    % ("xyz"[k], dps, self.max_bias_dps))
         return regs
 
     def _mpu_point(self, mpu):
         p = Progress("MPU-6xxx  ", self.packets)
-        pt = mpu.bias_point(packets=self.packets)
+        pt = mpu.bias_point(packets=self.packets, max_bias_dps=self.max_bias_dps)
         p.done(self.packets)
         return pt
 
@@ -279,6 +284,49 @@ class Session:
             pt["mlx_residual"] = acc / (float(mlx.out_scale) * n)
         return pt
 
+    def _zero_and_face(self):
+        # the zero at rest, then the check on another face; a residual there means one of the
+        # two captures was taken while the board turned: offer to redo both
+        r = self.result
+        mpu = self.s.mpu
+        rounds = 0
+        while True:
+            rounds += 1
+            before = mpu.offsets() if mpu is not None else None
+            still = self._step("still", "Zero at rest",
+                               "Lay the board flat, component side (+z) up, and keep it still.", self._still)
+            if still:
+                r.update(still)
+            if mpu is None or not still or "mpu" not in still:
+                return
+            res = self._step("face:+x", "Check on another face",
+                             "Turn the board so its +x edge points up, and keep it still.", self._face)
+            if res is None:
+                return
+            r["residual"] = res
+            worst = max(abs(v) for v in res[0])
+            if worst <= self.max_residual_dps:
+                return
+            print()
+            print("  ! after the zero the gyro reads %+.2f %+.2f %+.2f deg/s on the +x face (limit %.1f): "
+                  "the board was turning during the zero or this check (a slow turn about the vertical "
+                  "looks like bias in one capture)" % (-res[0][0], -res[0][1], -res[0][2], self.max_residual_dps))
+            if self.answers is not None and rounds >= self.max_tries:
+                a = "q"
+            else:
+                a = self.ask("  [r]edo the zero and this check, [k]eep the zero, [q]uit? ", "r")
+            if a == "k":
+                print("  kept")
+                return
+            if before is not None:
+                mpu.apply(before[0], before[1])  # the offsets from before this zero
+            if a == "q":
+                raise Aborted("the zero failed its check on another face %d time(s); previous offsets "
+                              "put back" % rounds)
+            r.pop("mpu", None)
+            r.pop("residual", None)
+            print("  redo:")
+
     def _wait_for_change(self, taken):
         # None when the temperature moved step_c away from every point taken; else the reply
         t0 = _now_ms()
@@ -354,7 +402,7 @@ class Session:
             h = mlx.health()
             t = mlx.table
             if t is None:
-                print("  MLX90609: no look-up table (VERSION 0 or damaged EEPROM); not calibrated here")
+                print("  MLX90609: no usable look-up table (%s); not calibrated here" % (mlx._table_error,))
             else:
                 d = h["vote_disagreements"]
                 print("  MLX90609 EEPROM: VERSION %d, %d deg/s full scale, TC %d/%d/%d mV, %d voted bits "
@@ -364,18 +412,8 @@ class Session:
         if mpu is not None:
             print("  %s at I2C 0x%02x, %.2f degC" % (mpu.part, mpu.address, mpu.temp_c100() / 100.0))
         try:
-            still = None
             if mpu is not None or mlx is not None:
-                still = self._step("still", "Zero at rest",
-                                   "Lay the board flat, component side (+z) up, and keep it still.",
-                                   self._still)
-            if still:
-                r.update(still)
-            if mpu is not None and still and "mpu" in still:
-                res = self._step("face:+x", "Check on another face",
-                                 "Turn the board so its +x edge points up, and keep it still.", self._face)
-                if res is not None:
-                    r["residual"] = res
+                self._zero_and_face()
             if mpu is not None or s.adxrs is not None:
                 r["points"] = self._warm()
         except Aborted as e:
@@ -396,6 +434,11 @@ class Session:
             saved.append(_sensors.MLX)
         mpu = s.mpu
         if mpu is not None and "mpu" in r:
+            n = mpu.check()  # an ICM-20602 may have rewritten its trim during the session
+            if n:
+                print("  ! %s changed %d offset register(s) by itself during the session (a known "
+                      "ICM-20602 fault): written back" % (mpu.part, n))
+            r["trim_changes"] = mpu.trim_changes
             mpu.save(st, _sensors.MPU)
             saved.append(_sensors.MPU)
         pts = r.get("points") or []

@@ -41,9 +41,10 @@ not set (year before 2024), so the counter is the reliable order.
 
 Backends:
 
-* ``Store(path)``: a file. Writes go to ``path + ".new"``, are read back and checked, then
-  renamed over ``path``; the previous generation is kept as ``path + ".old"``. Reading picks
-  the newest of the three whose CRC holds. See docs/store.md for why this is power-cut safe.
+* ``Store(path)``: a file. Writes go to ``path + ".new"``, created exclusively (never through
+  a symlink or into an existing file), read back and checked, then renamed over ``path``; the
+  previous generation is kept as ``path + ".old"``. Reading picks the newest of the three whose
+  CRC holds. See docs/store.md for why this is power-cut safe.
 * ``Store(nvm=microcontroller.nvm, offset=0, size=None)``: CircuitPython's non-volatile byte
   array, split in two slots written alternately.
 
@@ -54,7 +55,9 @@ Errors: ``KeyError`` for a name never saved; ``ValueError`` for bad arguments (n
 printable ASCII or longer than 32, a value outside int32, wrong array length, a record for
 another part or kind); ``StoreError`` (a ValueError) for a store whose content cannot be used
 (empty, not a store, newer format version, bad length or CRC with no good copy left). A save
-never overwrites a file or nvm slot it does not recognise as its own unless ``force=True``.
+never overwrites a file or nvm slot it does not recognise as its own unless ``force=True``, and
+refuses a ``path.new`` that is a symlink, a directory or someone else's file (``force=True``
+removes that name; it never writes through it).
 Warnings (one damaged copy, the other used) are printed and kept in ``Store.warnings``.
 """
 
@@ -122,6 +125,14 @@ _BLANK = const(2)  # erased nvm (0xFF or 0x00): free to write
 _DAMAGED = const(3)  # our magic, but torn or corrupted: free to overwrite, with a warning
 _FOREIGN = const(4)  # not a store (or empty): never overwritten without force=True
 _NEWER = const(5)  # a store in a newer format: never read, never overwritten without force
+_ALIEN = const(6)  # path.new that is not a plain file (a symlink, a directory, a hard link): never
+#                    read, never opened for writing, removed only with force=True
+
+# st_mode file types (POSIX values, the ones MicroPython's os.ilistdir reports too)
+_S_IFMT = const(0o170000)
+_S_IFREG = const(0o100000)
+_S_IFDIR = const(0o040000)
+_S_IFLNK = const(0o120000)
 
 _READ_ONLY_HELP = (
     "; on CircuitPython the CIRCUITPY drive is read-only to code while USB can write it: "
@@ -456,8 +467,63 @@ class Store:
 
     def _read_copies(self):
         if self._nvm is None:
-            return [self._read_file(p) for p in self._labels()]
+            names = self._labels()
+            out = [self._read_file(names[0]), self._read_file(names[1]), None]
+            # path.new is the only name a save writes into: read it only when it is a plain
+            # file of its own (a symlink there could point anywhere, a FIFO would hang the read)
+            if self._alien(names[2]) is None:
+                out[2] = self._read_file(names[2])
+            return out
         return [bytes(self._nvm[a:a + n]) for a, n in self._slots]
+
+    def _entry(self, p):
+        """(file type bits, hard links) of the name p itself, never following a symlink; None
+        when nothing is there. MicroPython has no lstat: its os.ilistdir reports the entry's
+        own type (VfsPosix from d_type, so a symlink shows as one; LittleFS and FAT have none)."""
+        lstat = getattr(os, "lstat", None)
+        if lstat is not None:
+            try:
+                st = lstat(p)
+            except OSError:
+                return None
+            return st[0] & _S_IFMT, st[3]
+        i = p.rfind("/")
+        d, name = (p[:i] or "/", p[i + 1:]) if i >= 0 else (None, p)
+        try:
+            entries = os.ilistdir(d) if d is not None else os.ilistdir()
+            for e in entries:
+                if e[0] == name:
+                    t = e[1] & _S_IFMT
+                    if t == 0:  # a filesystem that does not say: ask stat
+                        t = os.stat(p)[0] & _S_IFMT
+                    return t, 1
+        except (OSError, AttributeError):
+            if self._exists(p):
+                return os.stat(p)[0] & _S_IFMT, 1
+        return None
+
+    def _alien(self, p):
+        """None when p is absent or a plain file with one link; else what it is, in words."""
+        e = self._entry(p)
+        if e is None:
+            return None
+        t, links = e
+        if t == _S_IFREG:
+            if links > 1:
+                return "a file with %d hard links (a store never makes one)" % links
+            return None
+        if t == _S_IFLNK:
+            target = ""
+            readlink = getattr(os, "readlink", None)
+            if readlink is not None:
+                try:
+                    target = " to %r" % (readlink(p),)
+                except OSError:
+                    pass
+            return "a symbolic link%s (a store never makes one)" % target
+        if t == _S_IFDIR:
+            return "a directory"
+        return "not a regular file (file type 0o%o)" % t
 
     def _scan(self):
         """Read every copy; return (best index or -1, states, records, problems)."""
@@ -474,6 +540,12 @@ class Store:
         for i in range(len(labels)):
             buf = copies[i]
             if buf is None:
+                alien = None if slot or i != 2 else self._alien(labels[i])
+                if alien is not None:
+                    states.append(_ALIEN)
+                    whys.append("is %s: never read or written through" % alien)
+                    problems.append("%s %s" % (labels[i], whys[-1]))
+                    continue
                 states.append(_MISSING)
                 whys.append("does not exist")
                 continue
@@ -495,7 +567,10 @@ class Store:
         if newer is not None and not force:
             raise StoreError(newer)
         torn_only = self._nvm is not None and _FOREIGN not in states[0]
-        if best < 0 and problems and not force and not torn_only:
+        fatal = problems
+        if self._nvm is None and states[0][2] == _ALIEN:
+            fatal = problems[:-1]  # only a warning for reading; a save refuses it (_check_new)
+        if best < 0 and fatal and not force and not torn_only:
             raise StoreError("no usable copy of the store: " + "; ".join(problems) + (
                 "; refusing to overwrite it (pass force=True to start a new store, losing "
                 "what is there)" if writing else ""))
@@ -722,12 +797,50 @@ class Store:
         except OSError as e:
             self._wrap(e, "rename %s to %s" % (src, dst))
 
-    def _write_verified(self, p, image):
+    def _check_new(self, states, force):
+        # path.new before anything changes: what a cut left there (empty, torn or whole, our
+        # magic or erased bytes at the start) is ours to remove; anything else is refused.
+        st, why = states[0][2], states[1][2]
+        if force or st in (_MISSING, _DAMAGED, _OK):
+            return
+        new = self._file_names()[2]
+        if st == _FOREIGN:
+            head = self._read_file(new) or b""
+            torn = True
+            for i in range(min(4, len(head))):
+                torn = torn and head[i] in (MAGIC[i], 0, 0xFF)
+            if torn:  # empty, or a torn start of our own write
+                return
+        raise StoreError("%s %s; refusing to write it (remove it, or pass force=True to remove "
+                         "that name: nothing is ever written through it)" % (new, why))
+
+    def _open_new(self, p, force):
+        # Exclusive creation: a save never opens an existing file for writing, so a symlink or
+        # a foreign file put at path.new cannot make it write anywhere else. Whatever is there
+        # now was vetted by _check_new (or force): only the name is removed.
+        if self._entry(p) is not None:
+            alien = self._alien(p)
+            if alien is not None and not force:
+                raise StoreError("%s became %s during the save; refusing to write it" % (p, alien))
+            self._remove(p)
         try:
-            f = open(p, "wb")
+            return open(p, "xb")  # O_CREAT|O_EXCL: CPython (never follows a symlink), LittleFS, FAT
+        except (OSError, ValueError) as e:
+            if isinstance(e, OSError) and _errno(e) == _EROFS:
+                self._wrap(e, "create " + p)
+            if self._entry(p) is not None:
+                raise StoreError("%s appeared during the save (another program?); refusing to "
+                                 "write it; the store is unchanged" % p)
+        # A port whose open() has no "x" (MicroPython's VfsPosix reads "xb" as "rb" and fails
+        # on the missing file): nothing is at p, checked just now without following links.
+        try:
+            return open(p, "wb")
         except OSError as e:
             self._wrap(e, "write " + p)
             raise
+
+    def _write_verified(self, p, image, force=False):
+        f = self._open_new(p, force)
         try:
             f.write(image)
             f.flush()
@@ -766,6 +879,7 @@ class Store:
         cur, old, new = self._file_names()
         self._refuse(states, 0, force)
         self._refuse(states, 1, force)
+        self._check_new(states, force)
         states = states[0]
         # 1. make `cur` hold the newest valid copy (normally it already does)
         if best == 1:
@@ -780,8 +894,8 @@ class Store:
             for i in (0, 1):
                 if states[i] != _MISSING:
                     self._remove((cur, old)[i])
-        # 2. the new image goes to a scratch name, read back
-        self._write_verified(new, image)
+        # 2. the new image goes to a scratch name, created exclusively, read back
+        self._write_verified(new, image, force)
         # 3. commit: the newest copy becomes .old, the new image becomes current
         if self._exists(cur):
             self._replace(cur, old)

@@ -1,6 +1,7 @@
 // Run a script in the real MicroPython WebAssembly VM (a 32-bit MicroPython 1.27) under node.
 //
-//   node tools/firmware/mpvm.mjs [--heap 1m] [--mount HOSTDIR:VMDIR ...] [--path VMDIR ...] (FILE.py | -c CODE)
+//   node tools/firmware/mpvm.mjs [--heap 1m] [--mount HOSTDIR:VMDIR ...] [--path VMDIR ...]
+//                               [--symlink VMLINK=VMTARGET ...] (FILE.py | -c CODE)
 //
 // Host directories are copied into the VM's in-memory filesystem (lib/ -> /lib by default),
 // so `import tempcomp` works as it does on a board. Exit status 1 on an uncaught Python
@@ -25,6 +26,7 @@ function parseSize(s) {
 let heap = 1048576;
 const mounts = [];
 const paths = [];
+const symlinks = [];  // made in the VM's filesystem (tests of code that must not follow them)
 let code = null;
 const argv = process.argv.slice(2);
 for (let i = 0; i < argv.length; i++) {
@@ -32,6 +34,7 @@ for (let i = 0; i < argv.length; i++) {
   if (a === "--heap") heap = parseSize(argv[++i]);
   else if (a === "--mount") mounts.push(argv[++i]);
   else if (a === "--path") paths.push(argv[++i]);
+  else if (a === "--symlink") symlinks.push(argv[++i]);
   else if (a === "-c") code = argv[++i];
   else code = fs.readFileSync(a, "utf8");
 }
@@ -67,6 +70,12 @@ for (const m of mounts) {
   const dst = m.slice(i + 1);
   if (fs.statSync(src).isDirectory()) copyTree(src, dst);
   else { mkdirs(path.posix.dirname(dst)); mp.FS.writeFile(dst, fs.readFileSync(src)); }
+}
+for (const l of symlinks) {
+  const i = l.indexOf("=");
+  const link = l.slice(0, i);
+  mkdirs(path.posix.dirname(link));
+  mp.FS.symlink(l.slice(i + 1), link);
 }
 let prologue = "import sys\n";
 for (const p of paths) prologue += `sys.path.insert(0, ${JSON.stringify(p)})\n`;

@@ -15,11 +15,15 @@ class VMError(AssertionError):
     pass
 
 
-def run(code, mounts=(), paths=(), heap="1m", timeout=120):
-    """Run code in a fresh VM with lib/ at /lib and host_tests/device/ importable; return stdout."""
+def run(code, mounts=(), paths=(), heap="1m", timeout=120, symlinks=()):
+    """Run code in a fresh VM with lib/ at /lib and host_tests/device/ importable; return stdout.
+
+    symlinks: (link, target) pairs made in the VM's filesystem before the code runs."""
     cmd = ["node", RUNNER, "--heap", heap, "--mount", VM_TEST_DIR + ":/vmtest", "--path", "/vmtest"]
     for m in mounts:
         cmd += ["--mount", m]
+    for link, target in symlinks:
+        cmd += ["--symlink", "%s=%s" % (link, target)]
     for p in paths:
         cmd += ["--path", p]
     cmd += ["-c", code]

@@ -10,6 +10,11 @@ optionally ``transfer_into(out, into)``, which ``write_readinto`` then uses with
 
 Fault injection: ``bus.fail_at = k`` makes the k-th transaction from now (0 = the next one)
 raise ``OSError(errno.EIO)``, as a NACK does on real ports; ``bus.transactions`` counts them.
+``bus.garble_at = k`` corrupts what the master receives on the k-th *read* from now (``bus.reads``
+counts them) without any error, as noise or a marginal pull-up can: the device still sends (a
+FIFO still pops), the caller gets ``bus.garble`` bytes instead: "random" (seeded by
+``bus.garble_seed``), "flip" (one bit of one byte), "ones" (0xFF), "zeros" or "slip" (every
+byte one position late, a lost clock).
 """
 
 try:
@@ -22,10 +27,55 @@ except (ImportError, AttributeError):
     _ENODEV = 19
 
 
+GARBLES = ("random", "flip", "ones", "zeros", "slip")
+
+
 class _FaultCounter:
     def __init__(self):
         self.transactions = 0
         self.fail_at = None
+        self.reads = 0
+        self.garble_at = None
+        self.garble = "random"
+        self.garble_seed = 1
+        self.garbled = 0  # reads corrupted so far
+
+    def _garble(self, data):
+        # data: what the device sent on one read; returns what the master receives
+        n = self.reads
+        self.reads = n + 1
+        k = self.garble_at
+        if k is None:
+            return data
+        if k > 0:
+            self.garble_at = k - 1
+            return data
+        self.garble_at = None
+        self.garbled += 1
+        x = (self.garble_seed * 2654435761 + 12345) & 0x7FFFFFFF
+        out = bytearray(data)
+        m = len(out)
+        kind = self.garble
+        if kind == "random":
+            for i in range(m):
+                x = (x * 1103515245 + 12345) & 0x7FFFFFFF
+                out[i] = (x >> 16) & 0xFF
+        elif kind == "flip":
+            x = (x * 1103515245 + 12345) & 0x7FFFFFFF
+            out[(x >> 8) % m] ^= 1 << ((x >> 4) & 7)
+        elif kind == "ones":
+            for i in range(m):
+                out[i] = 0xFF
+        elif kind == "zeros":
+            for i in range(m):
+                out[i] = 0
+        elif kind == "slip":
+            for i in range(m - 1, 0, -1):
+                out[i] = out[i - 1]
+            out[0] = 0xFF
+        else:
+            raise ValueError("garble must be one of %s" % (", ".join(GARBLES),))
+        return bytes(out)
 
     def _tick(self):
         n = self.transactions
@@ -59,7 +109,7 @@ class SimI2C(_FaultCounter):
 
     def readfrom_mem_into(self, addr, memaddr, buf, addrsize=8):
         self._tick()
-        data = self._dev(addr).read(memaddr, len(buf))
+        data = self._garble(self._dev(addr).read(memaddr, len(buf)))
         for i in range(len(buf)):
             buf[i] = data[i]
 
@@ -88,7 +138,7 @@ class SimI2C(_FaultCounter):
         self._tick()
         dev = self._dev(addr)
         reg = self._pending_reg.get(addr, 0)
-        data = dev.read(reg, len(buf))
+        data = self._garble(dev.read(reg, len(buf)))
         for i in range(len(buf)):
             buf[i] = data[i]
 

@@ -22,7 +22,12 @@ What is modelled:
   of the whole word, bit 0 reserved (stored, no effect), factory trim at power-on.
 * Time advances with bus traffic: every transaction costs its bytes at ``bus_hz``
   (9 clocks a byte), so polling the FIFO sees it fill at the configured rate.
-* Faults: NACKs come from SimI2C.fail_at; ``stuck`` is a set of registers that ignore writes
+* Motion: ``set_motion`` (a rate and an acceleration held as given), ``turn`` (a steady rotation
+  that also turns gravity in the part's frame, as a real turn does), ``schedule`` (a change
+  later in simulated time).
+* Default biases are drawn within the part's datasheet zero-rate tolerance (+-20 deg/s on the
+  MPU-6050 family, +-5 deg/s on the MPU-6500 family: PS-MPU-6000A-00 6.1, PS-MPU-9250A-01 3.1).
+* Faults: NACKs come from SimI2C.fail_at, corrupted reads from SimI2C.garble_at; ``stuck`` is a set of registers that ignore writes
   (a read-back mismatch); ``glitch_trim(axis)`` changes an accel trim register at runtime as
   the ICM-20602 is known to do.
 
@@ -152,7 +157,8 @@ class MPU6xxxSim:
         rng = _Rng(seed)
         self._rng = rng
         if gyro_bias_dps is None:
-            gyro_bias_dps = [rng.uniform(-15.0, 15.0) for _ in range(3)]
+            zro = 15.0 if self.family == 6050 else 4.5  # within the datasheet tolerance
+            gyro_bias_dps = [rng.uniform(-zro, zro) for _ in range(3)]
         if accel_bias_g is None:
             accel_bias_g = [rng.uniform(-0.06, 0.06) for _ in range(3)]
         if factory_trim is None:
@@ -170,6 +176,7 @@ class MPU6xxxSim:
         self.temp_c = float(temp_c)
         self.rate = [0.0, 0.0, 0.0]
         self.accel = [0.0, 0.0, 1.0]
+        self._turn = None  # (start ns, gravity at the start) while turn() is in effect
         self.byte_ns = 9 * 1000000000 // bus_hz
         self.stuck = set()
         self.writes = 0  # register bytes written, for tests that count traffic
@@ -186,10 +193,37 @@ class MPU6xxxSim:
         """Lay the part still with axis ``face`` ("+x", "-z", ...) pointing up."""
         self.accel = list(FACES[face])
         self.rate = [0.0, 0.0, 0.0]
+        self._turn = None
 
     def set_motion(self, rate_dps=(0.0, 0.0, 0.0), accel_g=(0.0, 0.0, 1.0)):
         self.rate = [float(v) for v in rate_dps]
         self.accel = [float(v) for v in accel_g]
+        self._turn = None
+
+    def turn(self, rate_dps):
+        """Rotate steadily at rate_dps (x, y, z deg/s in the part's frame) from now on: the
+        gyro sees the rate, and gravity turns the other way in the part's frame (a turn about
+        the vertical leaves it where it is). place() or set_motion() stop it."""
+        self.rate = [float(v) for v in rate_dps]
+        self._turn = (self.ns, list(self.accel))
+
+    def _gravity(self):
+        # g(t) = R(-w t) g0 (Rodrigues): the part turns by w t, so gravity turns by -w t in it
+        t = self._turn
+        if t is None:
+            return self.accel
+        w = self.rate
+        wn = math.sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2])
+        g = t[1]
+        if wn == 0.0:
+            return g
+        a = -math.radians(wn) * (self.ns - t[0]) * 1e-9
+        k = (w[0] / wn, w[1] / wn, w[2] / wn)
+        c = math.cos(a)
+        sn = math.sin(a)
+        kd = k[0] * g[0] + k[1] * g[1] + k[2] * g[2]
+        kx = (k[1] * g[2] - k[2] * g[1], k[2] * g[0] - k[0] * g[2], k[0] * g[1] - k[1] * g[0])
+        return [g[j] * c + kx[j] * sn + k[j] * kd * (1.0 - c) for j in range(3)]
 
     def schedule(self, after_ms, rate_dps=(0.0, 0.0, 0.0), accel_g=None):
         """Change the motion ``after_ms`` of simulated time from now (a bump mid-capture)."""
@@ -275,12 +309,13 @@ class MPU6xxxSim:
         gsens = 131.0 / (1 << gfs)
         asens = 16384.0 / (1 << afs)
         out = []
+        acc = self._gravity()
         for k in range(3):
             a = self.accel_base + self.stride * k
             word = _s16(r[a], r[a + 1])
             # bits 15..1 are the offset (2 LSB of the 2048 LSB/g word a step); bit 0 is reserved
             shift_g = ((word >> 1) - (_s16(self.factory[k] >> 8, self.factory[k] & 0xFF) >> 1)) / 1024.0
-            out.append((self.accel[k] + self._bias(self.accel_bias[k]) + shift_g) * asens)
+            out.append((acc[k] + self._bias(self.accel_bias[k]) + shift_g) * asens)
         for k in range(3):
             reg = _s16(r[GYRO_OFFS + 2 * k], r[GYRO_OFFS + 2 * k + 1])
             out.append((self.rate[k] + self._bias(self.gyro_bias[k])) * gsens + reg * 4.0 / (1 << gfs))
@@ -326,9 +361,12 @@ class MPU6xxxSim:
         self.ns += nbytes * self.byte_ns
         while self._schedule and self._schedule[0][0] <= self.ns:
             _, rate, accel = self._schedule.pop(0)
+            if self._turn is not None:  # a turn goes on at the new rate from where it got
+                self._turn = (self.ns, self._gravity())
             self.rate = [float(v) for v in rate]
             if accel is not None:
                 self.accel = [float(v) for v in accel]
+                self._turn = None
         if not self._running():
             self._next_ns = self.ns
             return
