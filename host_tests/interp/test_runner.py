@@ -33,4 +33,5 @@ def test_error_and_reset(interp, tmp_path):
                      "with open('/hostdir/w.txt', 'w') as f:\n    f.write('hi')\n",
                      mounts=(str(tmp_path) + ":/hostdir",), paths=("/hostdir",))
     assert out.strip() == "42"
-    assert (tmp_path / "w.txt").read_text() == "hi" or interp.name == "wasm"  # the wasm VM copies mounts in
+    if interp.name != "wasm":  # the wasm VM copies mounts in; the others write through to the host
+        assert (tmp_path / "w.txt").read_text() == "hi"
