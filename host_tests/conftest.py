@@ -21,40 +21,18 @@ def mpvm():
     return _mpvm.run
 
 
-from tools.firmware import interp as _interp  # noqa: E402
-
-_OPEN = {}  # name -> running interpreter (or the reason it cannot run), one per test session
+import interps as _interps  # noqa: E402  (host_tests/helpers/interps.py)
 
 
-def open_interp_once(name):
-    """The session's one running interpreter ``name`` (boots it the first time); skips the test
-    with the reason when it cannot run here."""
-    if name not in _OPEN:
-        why = _interp.missing(name)
-        if why is None:
-            try:
-                _OPEN[name] = _interp.open_interp(name)
-            except _interp.Unavailable as e:
-                why = str(e)
-        if why is not None:
-            _OPEN[name] = why
-    it = _OPEN[name]
-    if isinstance(it, str):
-        pytest.skip("%s cannot run: %s" % (name, it))
-    return it
-
-
-@pytest.fixture(scope="session", autouse=False)
+@pytest.fixture(scope="session")
 def _close_interps():
     yield
-    for it in _OPEN.values():
-        if not isinstance(it, str):
-            it.close()
-    _OPEN.clear()
+    _interps.close_all()
 
 
-@pytest.fixture(scope="session", params=_interp.INTERPRETERS)
+@pytest.fixture(scope="session", params=_interps.INTERPRETERS)
 def interp(request, _close_interps):
     """Each real interpreter in turn (wasm VM, Cortex-M3 and M7 firmware, CircuitPython), started once
-    per session: interp.run(code, mounts=(), paths=()) -> stdout, raising on a Python error; interp.name."""
-    return open_interp_once(request.param)
+    per session: interp.run(code, mounts=(), paths=()) -> stdout, raising on a Python error; interp.name.
+    One interpreter only: @pytest.mark.parametrize("interp", ["an385"], indirect=True)."""
+    return _interps.get(request.param)
