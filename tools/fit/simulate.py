@@ -71,13 +71,16 @@ def _main(argv=None):
     p.add_argument("--seed", type=int, default=1)
     p.add_argument("--counts-per-g", type=float, default=16384.0)
     p.add_argument("--samples", type=int, default=20)
+    p.add_argument("--cross-tc", type=float, default=0.0,
+                   help="sixpos: cross-axis drift, standard deviation per degC (e.g. 1e-4); default 0")
+    p.add_argument("--temps", default="-40,25,85", help="chamber temperatures, degC, comma separated")
     a = p.parse_args(argv)
     rng = np.random.default_rng(a.seed)
-    temps = [-40.0, 25.0, 85.0]
+    temps = [float(t) for t in a.temps.split(",")]
     with open(a.out, "w", newline="") as f:
         w = csv.writer(f)
         if a.kind == "sixpos":
-            raw = chamber(truth(1, rng), temps, SIX, a.samples, a.counts_per_g, rng)
+            raw = chamber(truth(1, rng, cross_tc=a.cross_tc), temps, SIX, a.samples, a.counts_per_g, rng)
             labels = ["+x", "-x", "+y", "-y", "+z", "-z"]
             w.writerow(["temp_c", "orient", "ax", "ay", "az"])
             for k, t in enumerate(temps):

@@ -182,7 +182,7 @@ def _correction_law(law_cross, temps, t_room):
     """
     U, D, _ = law_cross.shape
     DE = min(2 * (D - 1), 3) + 1
-    grid = np.linspace(0.0, 1.0, 8 * DE + 1)
+    grid = np.linspace(0.0, 1.0, 4 * DE + 1)
     dT = temps.min(axis=1)[:, None] + (temps.max(axis=1) - temps.min(axis=1))[:, None] * grid - t_room  # (U, G)
     V = np.power(dT[:, :, None], np.arange(D))  # (U, G, D)
     n = np.zeros((U, len(grid), 3, 3))
