@@ -34,7 +34,7 @@ t_hi_c, degree`` and the nine E_ij of each order 1..degree (per degC**k).
 """
 
 from tempcomp import record
-from tempcomp.fixedpoint import Poly
+from tempcomp.fixedpoint import Poly, shift_basis
 
 try:
     from micropython import const
@@ -117,6 +117,7 @@ class CrossAxis:
             raise ValueError("t_scale (degC per temperature code) must be non-zero")
         lo, hi = _code_range(lo_c, hi_c, self.t_offset, self.t_scale)
         code_room = (self.t_room - self.t_offset) / self.t_scale
+        ref = int(round(code_room))
         polys = []
         for i in range(9):
             # coefficients of powers of (code - code_room): E_k * t_scale**k
@@ -125,7 +126,7 @@ class CrossAxis:
             for m in self.law:
                 p *= self.t_scale
                 c.append(m[i] * p)
-            pl = Poly(c, (lo, hi), code_room, max_frac=_F)
+            pl = Poly(shift_basis(c, code_room, ref), (lo, hi), ref, max_frac=_F)
             if pl.frac != _F:
                 raise ValueError("cross-axis law E[%d][%d]: coefficients too large for fixed point" % (i // 3, i % 3))
             a, b = pl.extrema()
@@ -139,7 +140,7 @@ class CrossAxis:
         self._lo = lo
         self._hi = hi
         self._q = [0] * 9
-        self.update(int(round(code_room)))
+        self.update(ref)
         self.clamped = 0
 
     def code_of(self, temp_c):
