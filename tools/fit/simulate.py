@@ -58,6 +58,49 @@ def chamber(tr, temps, g_dirs, samples, cpg, rng, noise_counts=8.0, t_room=25.0,
     return np.rint(clean[:, :, :, None, :] + noise).astype(dtype)
 
 
+def fleet_files(out, units, rng, samples=20, cpg=16384.0, temps=(-40.0, 25.0, 85.0), one_csv=False,
+                outliers=()):
+    """Write a fleet of simulated six-position units: one CSV per unit in directory ``out``
+    (unit-00000.csv...) or, with one_csv, one CSV with a ``unit`` column. Units listed in
+    ``outliers`` get a 40x noisier chamber (a loose fixture). Returns the truth dict."""
+    import os
+
+    tr = truth(units, rng)
+    labels = ["+x", "-x", "+y", "-y", "+z", "-z"]
+    temps = np.asarray(temps, dtype=float)
+    bad = set(outliers)
+    chunk = 500
+    if one_csv:
+        f = open(out, "w")
+        f.write("unit,temp_c,orient,ax,ay,az\n")
+    else:
+        os.makedirs(out, exist_ok=True)
+    # the row prefix of each (temperature, orientation) block; samples follow as integers
+    pre = ["%g,%s," % (t, lab) for t in temps for lab in labels]
+    for start in range(0, units, chunk):
+        n = min(chunk, units - start)
+        sub = {k: v[start:start + n] for k, v in tr.items()}
+        raw = chamber(sub, temps, SIX, samples, cpg, rng)
+        for i in range(n):
+            u = start + i
+            r = raw[i]
+            if u in bad:
+                noisy = chamber({k: v[u:u + 1] for k, v in tr.items()}, temps, SIX, samples, cpg, rng,
+                                noise_counts=320.0)
+                r = noisy[0]
+            r = r.reshape(len(pre), samples, 3)
+            name = "unit-%05d" % u
+            body = "".join(pre[b] + "%d,%d,%d\n" % tuple(s) for b in range(len(pre)) for s in r[b].tolist())
+            if one_csv:
+                f.write("".join(name + "," + line + "\n" for line in body.splitlines()))
+            else:
+                with open(os.path.join(out, name + ".csv"), "w") as g:
+                    g.write("temp_c,orient,ax,ay,az\n" + body)
+    if one_csv:
+        f.close()
+    return tr
+
+
 def _main(argv=None):
     """Write a simulated chamber CSV (for trying the tools without a chamber)."""
     import argparse
@@ -66,8 +109,10 @@ def _main(argv=None):
     import sys
 
     p = argparse.ArgumentParser(prog="python -m tools.fit.simulate", description=_main.__doc__)
-    p.add_argument("kind", choices=["sixpos", "adxrs"])
-    p.add_argument("out", help="CSV file to write")
+    p.add_argument("kind", choices=["sixpos", "adxrs", "sixpos-fleet"])
+    p.add_argument("out", help="CSV file to write (sixpos-fleet: a directory, one CSV per unit)")
+    p.add_argument("--units", type=int, default=100, help="sixpos-fleet: how many units")
+    p.add_argument("--one-csv", action="store_true", help="sixpos-fleet: one CSV with a unit column")
     p.add_argument("--seed", type=int, default=1)
     p.add_argument("--counts-per-g", type=float, default=16384.0)
     p.add_argument("--samples", type=int, default=20)
@@ -77,6 +122,9 @@ def _main(argv=None):
     a = p.parse_args(argv)
     rng = np.random.default_rng(a.seed)
     temps = [float(t) for t in a.temps.split(",")]
+    if a.kind == "sixpos-fleet":
+        fleet_files(a.out, a.units, rng, a.samples, a.counts_per_g, temps, one_csv=a.one_csv)
+        return 0
     with open(a.out, "w", newline="") as f:
         w = csv.writer(f)
         if a.kind == "sixpos":

@@ -19,7 +19,7 @@ TCO, SENtol, TCS) and the cross-axis part as ``tempcomp.crossaxis``.
 
 import numpy as np
 
-from tools.fit.common import FitError, check_temperatures, group_temperatures, numeric, read_csv
+from tools.fit.common import FitError, check_temperatures, group_temperatures
 
 # +x: the sensor's +x axis points up and reads +1 g
 LABELS = {
@@ -309,10 +309,24 @@ def check_coverage(dirs, temps):
 
 def fit_csv(path, counts_per_g, order=1, t_room=25.0, ellipsoid=False, raw_range=(-32768, 32767), temp_tol=1.0):
     """One unit from a CSV ``temp_c,orient,ax,ay,az`` (optional gx,gy,gz); a result dict for JSON."""
-    cols = read_csv(path, ["temp_c", "orient", "ax", "ay", "az"], optional=("gx", "gy", "gz"))
+    from tools.fit.fastcsv import read_table
+
+    cols = read_table(path, COLUMNS, optional=OPTIONAL, text_cols=("orient",))
+    return fit_table(cols, path, counts_per_g, order, t_room, ellipsoid, raw_range, temp_tol)
+
+
+COLUMNS = ("temp_c", "orient", "ax", "ay", "az")
+OPTIONAL = ("gx", "gy", "gz")
+
+
+def fit_table(cols, path, counts_per_g, order=1, t_room=25.0, ellipsoid=False, raw_range=(-32768, 32767),
+              temp_tol=1.0):
+    """One unit from columns (as tools.fit.fastcsv.read_table returns); path names it in errors."""
+    if not counts_per_g > 0:
+        raise FitError("counts per g must be positive, got %r" % (counts_per_g,))
     lines = cols["_line"]
-    T = numeric(cols, "temp_c", path)
-    raw = np.stack([numeric(cols, c, path) for c in ("ax", "ay", "az")], axis=1)
+    T = np.asarray(cols["temp_c"], dtype=float)
+    raw = np.stack([np.asarray(cols[c], dtype=float) for c in ("ax", "ay", "az")], axis=1)
     lo, hi = raw_range
     sat = (raw <= lo) | (raw >= hi)
     if sat.any():
@@ -320,9 +334,13 @@ def fit_csv(path, counts_per_g, order=1, t_room=25.0, ellipsoid=False, raw_range
         raise FitError("saturated axis: %s line %d axis %s reads %d, at the range limit %d..%d; use a wider "
                        "range or drop that orientation" % (path, lines[i], "xyz"[a], raw[i, a], lo, hi))
     labels = [s.strip() for s in cols["orient"]]
+    orients, first, inv = np.unique(np.array(labels, dtype=object).astype(str), return_index=True,
+                                    return_inverse=True)
+    orients = [str(o) for o in orients]
     have_g = all(c in cols for c in ("gx", "gy", "gz"))
     gvec = {}
-    for i, lab in enumerate(labels):
+    for j, lab in enumerate(orients):
+        i = int(first[j])
         if have_g:
             g = tuple(float(cols[c][i]) for c in ("gx", "gy", "gz"))
         elif ellipsoid:
@@ -332,27 +350,28 @@ def fit_csv(path, counts_per_g, order=1, t_room=25.0, ellipsoid=False, raw_range
         else:
             raise FitError("%s line %d: orientation %r is not one of %s (or give gx,gy,gz columns)"
                            % (path, lines[i], lab, " ".join(LABELS)))
-        gvec.setdefault(lab, g)
+        gvec[lab] = g
     centres, idx = group_temperatures(T, lines, temp_tol)
     if len(centres) < 2:
         raise FitError("only one temperature (%.2f degC): temperature laws need at least 2" % centres[0])
-    orients = sorted(gvec)
     NO = len(orients)
-    mean = np.empty((1, len(centres), NO, 3))
-    se = np.zeros((1, len(centres), NO, 3))
-    temps = np.empty(len(centres))
-    for k, c in enumerate(centres):
-        m = idx == k
-        temps[k] = T[m].mean()
-        for j, lab in enumerate(orients):
-            sel = m & np.array([lb == lab for lb in labels])
-            if not sel.any():
-                raise FitError("missing orientation: %.2f degC has no rows for orientation %r, which other "
-                               "temperatures have" % (c, lab))
-            r = raw[sel]
-            mean[0, k, j] = r.mean(axis=0)
-            if len(r) > 1:
-                se[0, k, j] = r.std(axis=0, ddof=1) / np.sqrt(len(r))
+    NT = len(centres)
+    cell = idx * NO + inv  # (temperature, orientation) of each row
+    count = np.bincount(cell, minlength=NT * NO)
+    if (count == 0).any():
+        k, j = divmod(int(np.argmin(count)), NO)
+        raise FitError("missing orientation: %.2f degC has no rows for orientation %r, which other "
+                       "temperatures have" % (centres[k], orients[j]))
+    s1 = np.stack([np.bincount(cell, raw[:, a], NT * NO) for a in range(3)], axis=1)
+    mean = (s1 / count[:, None]).reshape(1, NT, NO, 3)
+    se = np.zeros((1, NT, NO, 3))
+    multi = count > 1
+    if multi.any():
+        dev = raw - mean.reshape(NT * NO, 3)[cell]
+        ss = np.stack([np.bincount(cell, dev[:, a] ** 2, NT * NO) for a in range(3)], axis=1)
+        var = np.where(multi[:, None], ss / np.maximum(count - 1, 1)[:, None], 0.0)
+        se = np.sqrt(var / count[:, None]).reshape(1, NT, NO, 3)
+    temps = (np.bincount(idx, T, NT) / np.bincount(idx, minlength=NT))
     G = np.array([gvec[lab] for lab in orients], dtype=float)
     have_se = bool((se > 0).any())
     out, warnings = fit_means(mean, temps, counts_per_g, None if ellipsoid else G, se if have_se else None,
