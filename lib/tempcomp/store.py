@@ -51,7 +51,9 @@ Backends:
 On CircuitPython the CIRCUITPY drive is read-only to code while USB may write it: a save then
 raises ``ReadOnlyStoreError`` (an OSError) whose message gives the one-line boot.py fix.
 
-Errors: ``KeyError`` for a name never saved; ``ValueError`` for bad arguments (name not
+Errors: ``KeyError`` for a name never saved; ``StoreError`` instead when the newest copy is
+corrupt and an older one is in use (the message names that copy and the records only it held,
+which are lost); ``ValueError`` for bad arguments (name not
 printable ASCII or longer than 32, a value outside int32, wrong array length, a record for
 another part or kind); ``StoreError`` (a ValueError) for a store whose content cannot be used
 (empty, not a store, newer format version, bad length or CRC with no good copy left). A save
@@ -368,6 +370,8 @@ def _parse(buf, slot):
     if n == 0:
         return _FOREIGN, "is empty (0 bytes)", 0, None
     head = bytes(buf[0:4])
+    if head != MAGIC and n >= _MIN_IMAGE and _one_bit_off(head):
+        return _DAMAGED, "has a corrupted magic %r (one bit off %r: a flipped bit)" % (head, MAGIC), 0, None
     if head != MAGIC:
         if slot:
             erased = True
@@ -409,6 +413,45 @@ def _parse(buf, slot):
     return _OK, "", gen, recs
 
 
+def _one_bit_off(head):
+    d = 0
+    for i in range(4):
+        x = head[i] ^ MAGIC[i]
+        while x:
+            d += x & 1
+            x >>= 1
+    return d == 1
+
+
+def _salvage(buf):
+    # What a damaged copy's header and entries still say: (generation, record names, all names
+    # read?). Only to tell the user what a corrupt newest copy took with it; never trusted as data.
+    n = len(buf)
+    if n < _HDR:
+        return 0, [], False
+    count = struct.unpack_from("<H", buf, 6)[0]
+    length = struct.unpack_from("<I", buf, 8)[0]
+    gen = struct.unpack_from("<I", buf, 12)[0]
+    names = []
+    off = _HDR
+    for _ in range(count):
+        if off + _ENTRY > n:
+            return gen, names, False
+        e = struct.unpack_from("<HBBBBBBH", buf, off)
+        if not e[3] or e[0] != _entry_size(e[3], e[4], e[5], e[7]) or off + e[0] > n:
+            return gen, names, False
+        try:
+            names.append(_text(buf, off + _ENTRY, e[3], 0x20))
+        except ValueError:
+            return gen, names, False
+        # a save's record carries its generation too: one flipped bit cannot lower both
+        c = struct.unpack_from("<I", buf, off + 20)[0]
+        if c > gen:
+            gen = c
+        off += e[0]
+    return gen, names, off + _CRC in (length, n)  # else the count is wrong: names may be missing
+
+
 def _find(recs, name):
     for i in range(len(recs)):
         if recs[i].name == name:
@@ -433,6 +476,8 @@ class Store:
             self._slots = ((offset, half), (offset + half, half))
         self.generation = 0
         self.warnings = []
+        self._damaged = []
+        self._lost = None
         self._recs = None
         self._index = None
 
@@ -537,6 +582,7 @@ class Store:
         best_recs = []  # type: list
         problems = []
         newer = None
+        damaged = []
         for i in range(len(labels)):
             buf = copies[i]
             if buf is None:
@@ -560,6 +606,9 @@ class Store:
                 newer = "%s %s" % (labels[i], why)
             elif st != _BLANK and not scratch:
                 problems.append("%s %s" % (labels[i], why))
+                if st == _DAMAGED:
+                    damaged.append((len(problems) - 1, labels[i], why) + _salvage(buf))
+        self._damaged = damaged
         return best, (states, whys), best_recs, best_gen, problems, newer
 
     def _state(self, force=False, writing=False):
@@ -578,15 +627,36 @@ class Store:
         # blank one is what a cut during the first save leaves: nothing was stored yet.
         # Files are different: path and path.old only ever appear whole (by rename), so a
         # damaged one with no good copy is an error above.
+        # A damaged copy newer than the one used (a flipped bit in the newest file, not a cut):
+        # the records only it held are lost; record() says so instead of "never saved".
+        self._lost = None
+        lost_at = -1
+        if best >= 0:
+            for k, label, why, hgen, names, whole in self._damaged:
+                if hgen > gen:
+                    have = [r.name for r in recs]
+                    self._lost = (label, why, hgen, [x for x in names if x not in have], whole)
+                    lost_at = k
         self.warnings = []
-        for p in problems:
+        for i in range(len(problems)):
+            p = problems[i]
             if best >= 0:
                 msg = "%s; using %s (generation %d)" % (p, self._labels()[best], gen)
+                if i == lost_at:
+                    msg += "; " + self._lost_names()
             else:
                 msg = "%s; no calibration stored" % p
             self.warnings.append(msg)
             _warn(msg)
         return best, states, recs, gen
+
+    def _lost_names(self):
+        lost = self._lost
+        if lost is None:
+            return ""
+        names = ", ".join(repr(x) for x in lost[3]) or "none"
+        return "records only it held (lost): %s%s" % (
+            names, "" if lost[4] else " (and maybe more: its entries are unreadable past that)")
 
     def _set_cache(self, recs, gen):
         index = {}
@@ -623,6 +693,11 @@ class Store:
         """The loaded Record for name; ValueError if it is for another part or kind."""
         index = self._ensure()
         if name not in index:
+            lost = self._lost
+            if lost is not None:
+                raise StoreError("%r is not in the copy in use (generation %d): the newest copy of the "
+                                 "store (%s, generation %d) %s; %s" % (
+                                     name, self.generation, lost[0], lost[2], lost[1], self._lost_names()))
             raise KeyError("%r was never saved in %r" % (name, self))
         r = index[name]
         if part is not None and r.part != part:
