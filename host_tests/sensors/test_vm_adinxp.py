@@ -1,6 +1,7 @@
 """AN12760, analog gyro and cross-axis paths in the real MicroPython VM: results and zero allocation."""
 
 
+import interps
 import numpy as np
 from paths import REPO
 
@@ -93,12 +94,12 @@ print("CROSS", out[0], out[1], out[2])
 """
 
 
-def test_vm_results_and_zero_allocation(mpvm):
+def test_vm_results_and_zero_allocation(interp):
     T = [-40, -40, -40, 25, 25, 25, 105, 105, 105]
     G = [-1.0, 0.0, 1.0] * 3
     raw = [int(round(v * 16.384)) for v in F.simulate_mg(np.array(T, float), np.array(G), -20.0, 1.0, 0.0264, -0.001)]
     code = VM_CODE.replace("ROWS", repr(list(zip(T, raw))))
-    out = mpvm(code, mounts=(REPO + "/tools:/tools",), paths=("/",))
+    out = interps.run(interp, code, mounts=(REPO + "/tools/sim:/tools/sim",), paths=("/",))
     lines = {ln.split()[0]: ln.split()[1:] for ln in out.splitlines() if ln and not ln.startswith("ALLOC")}
     # AN12760 Table 10 AccTCOTCS in the VM: exactly -1000.0 / 0.0 / +1000.0 mg (0.1 mg units)
     assert [int(v) for v in lines["T10"]] == [-10000, 0, 10000] * 3
