@@ -2,7 +2,7 @@
 contract as a dict, plus the arrays the plot needs."""
 import numpy as np
 
-from . import prep
+from . import augmented, prep
 from .effects import CATALOGUE
 from .fit import Problem
 from .logio import AXES
@@ -99,6 +99,11 @@ def diagnose(train, withheld=None, model=None):
                  "withheld": len(withheld) if withheld is not None else 0,
                  "withheld_outliers": int((~prob.withheld.mask).sum()) if withheld is not None else 0},
     }
+    model_json = augmented.build(prob, g.state)
+    held = prob.withheld if withheld is not None else prob.train
+    model_json["host_check"] = augmented.host_check(model_json, prob, held,
+                                                    "withheld" if withheld is not None else "training")
+    result["model"] = model_json
     extras = {"prob": prob, "base_train": base_t, "greedy": g}
     return result, extras
 

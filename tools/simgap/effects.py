@@ -108,7 +108,7 @@ class Hysteresis(Effect):
     def columns(self, ctx, p, shape, axis):
         w, tau = shape if isinstance(shape, tuple) else (shape, 0.0)
         T = F.lowpass(p, tau) if tau else p.log.temp
-        return np.column_stack([(F.play(p, v, tau) - T) / ctx.tscale for v in (w, 2 * w, 4 * w)])
+        return np.column_stack([F.play(p, v, tau) - T for v in (w, 2 * w, 4 * w)])
 
 
 class TempRate(Effect):
@@ -137,8 +137,8 @@ class TempRate(Effect):
         q = ctx.quantised
         T = F.unstair(p, 0.0) if q else p.log.temp
         t1, t2 = self.time_constants(shape)
-        D1 = (T - F.lowpass(p, t1, q)) / ctx.tscale
-        D2 = (T - F.lowpass(p, t2, q)) / ctx.tscale
+        D1 = T - F.lowpass(p, t1, q)
+        D2 = T - F.lowpass(p, t2, q)
         r = p.r[:, axis]
         return np.column_stack([D1, D1 * p.d, D2, D2 * p.d, D1 * D1, r * D1, r * D2])
 
@@ -220,7 +220,7 @@ class Supply(Effect):
 
     def columns(self, ctx, p, shape, axis):
         s = p.log.supply if p.log.supply is not None else np.full(len(p), ctx.supply_mean)
-        v = (s - ctx.supply_mean) / ctx.supply_std
+        v = s - ctx.supply_mean
         vr = v * p.r[:, axis]
         cols = {"linear": [v], "quadratic": [v, v * v], "linear+ratiometric": [v, vr],
                 "quadratic+ratiometric": [v, v * v, vr], "full": [v, v * v, vr, v * p.d]}[shape]
@@ -244,7 +244,7 @@ class Drift(Effect):
             if f == "exp":
                 c = np.exp(-x)[:, None]
             elif f == "exp+linear":
-                c = np.column_stack([np.exp(-x), p.ton / ctx.run_span])
+                c = np.column_stack([np.exp(-x), p.ton])
             else:
                 c = (1.0 / (1.0 + x))[:, None]
             p.cache[key] = c
@@ -279,7 +279,7 @@ class TempQuantization(Effect):
         return [0.0, 0.5, 1.0, 2.0]
 
     def columns(self, ctx, p, shape, axis):
-        e = (F.unstair(p, shape) - p.log.temp) / ctx.tscale
+        e = F.unstair(p, shape) - p.log.temp
         return np.column_stack([e, e * p.d, e * p.r[:, axis]])
 
 

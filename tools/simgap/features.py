@@ -38,8 +38,10 @@ class Prepared:
     def __init__(self, log, ctx, mask):
         self.log = log
         self.mask = mask                      # rows used (spikes excluded)
-        self.d = (log.temp - ctx.t0) / ctx.tscale
-        self.r = log.ref / ctx.ref_scale
+        # Physical units (degC from t0, the input in ref units): the solver scales every
+        # column by its RMS, so the fit is the same and coefficients export as they stand.
+        self.d = log.temp - ctx.t0
+        self.r = log.ref
         self.run_start = prep.run_starts(log)
         self.ton = log.t - log.t[self.run_start]
         if log.run is None and "power_on_s" in log.meta:

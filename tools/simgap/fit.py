@@ -112,6 +112,35 @@ class Problem:
         return r
 
 
+    def coefficients(self, axis, blocks):
+        """The fit on every masked training row in physical units: (base or None when the sim
+        is given, [(effect, shape, coefficients)], per-run constants {run: c} or None)."""
+        m = self.train.mask
+        X = self._design(self.train, axis, blocks)[m]
+        y = self.y_t[m, axis]
+        per_run = any(BY_NAME[n].per_run for n, _ in blocks)
+        runs = np.unique(self.runs_m)
+        if per_run:
+            X = np.column_stack([X, (self.runs_m[:, None] == runs[None, :]).astype(float)])
+        scale = np.sqrt(np.mean(X * X, axis=0)) if X.shape[1] else np.zeros(0)
+        scale[scale == 0] = 1.0
+        Xs = X / scale
+        beta = _solve(Xs.T @ Xs, Xs.T @ y) / scale if X.shape[1] else np.zeros(0)
+        k = 0
+        base = None
+        if self.model is None:
+            base, k = beta[:5], 5
+        parts = []
+        for name, shape in blocks:
+            if BY_NAME[name].per_run:
+                continue
+            w = BY_NAME[name].columns(self.ctx, self.train, shape, axis).shape[1]
+            parts.append((name, shape, beta[k:k + w]))
+            k += w
+        tob = {int(r): float(c) for r, c in zip(runs, beta[k:])} if per_run else None
+        return base, parts, tob
+
+
 def _solve(G, b):
     if G.shape[0] == 0:
         return np.zeros(0)

@@ -51,7 +51,8 @@ class FixedModel:
 
 
 def base_columns(ctx, log, axis):
-    """Regressors of the fitted sim for one axis (scaled so the normal equations stay sane)."""
-    d = (log.temp - ctx.t0) / ctx.tscale
-    r = log.ref[:, axis] / ctx.ref_scale[axis]
+    """Regressors of the fitted sim for one axis in physical units (degC from t0, ref units);
+    the solver scales each column, so its coefficients are the model's as they stand."""
+    d = log.temp - ctx.t0
+    r = log.ref[:, axis]
     return np.column_stack([np.ones_like(d), d, d * d, r, r * d])
