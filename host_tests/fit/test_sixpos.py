@@ -423,3 +423,111 @@ def test_cross_axis_law_fixed_point_vs_float():
                 worst14 = max(worst14, float(np.max(np.abs(np.array(out) - (v14 + E @ v14)))))
     print("cross-axis law worst error %.4f LSB (|v| < 2**18), %.4f LSB (|v| < 2**14)" % (worst, worst14))
     assert worst < 0.8 and worst14 < 0.52
+
+
+def test_mpu6500_register_sim_cross_axis_drift_end_to_end(tmp_path):
+    """The register-level MPU-6500 model with a drifting cross-axis matrix (within the datasheet's
+    +-2 %), read through the driver: six faces at five temperatures -> fit -> records -> the
+    device path, checked at -40 and 85 degC on faces and tilted attitudes the fit never saw."""
+    from tempcomp.mpu6xxx import MPU6xxx
+    from tools.sim.buses import SimI2C
+    from tools.sim.mpu6xxx_sim import FACES, MPU6xxxSim
+
+    n0 = [[0.0, 0.008, -0.006], [0.005, 0.0, 0.004], [-0.007, 0.009, 0.0]]
+    tc = [[0.0, 1e-4, -1e-4], [1e-4, 0.0, 1e-4], [-1e-4, -1e-4, 0.0]]
+    sim = MPU6xxxSim("MPU-6500", seed=5, accel_noise_g=0.001)
+    sim.set_cross(n0, tc)
+    sim.set_tc(accel=[(0.0004, 1e-5), (-0.0003, 0.0), (0.0002, -2e-5)])
+    imu = MPU6xxx(SimI2C({0x68: sim}))
+    buf = [0] * 7
+
+    def settle():
+        # the data registers hold the last sample (1 kHz, each read ~0.4 ms of bus time)
+        for _ in range(8):
+            imu.read_raw(buf)
+
+    def mean_raw(n):
+        settle()
+        s = np.zeros(3)
+        for _ in range(n):
+            imu.read_raw(buf)
+            s += buf[:3]
+        return s / n
+
+    path = tmp_path / "mpu.csv"
+    with open(path, "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(["temp_c", "orient", "ax", "ay", "az"])
+        for t in (-40.0, -10.0, 25.0, 55.0, 85.0):
+            sim.temp_c = t
+            settle()
+            tr = imu.temp_c100() / 100.0  # the part's own reading
+            for face in FACES:
+                sim.place(face)
+                settle()
+                for _ in range(100):
+                    imu.read_raw(buf)
+                    w.writerow([tr, face] + buf[:3])
+    res = P.fit_csv(str(path), 16384, order=2)
+    ints = P.record_ints(res)
+    kw = dict(t_scale=T_SCALE, t_offset=T_OFFSET)
+    acc = AN12760.from_record(ints, 16384, out_per_g=10000, **kw)
+    law = CrossAxis.from_record(res["cross_record"], **kw)
+    flat = CrossAxis(res["cross_correction"])
+    rng = np.random.default_rng(3)
+    dirs = np.vstack([np.array(list(FACES.values())), rng.normal(size=(8, 3))])
+    dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
+    for t in (-40.0, 85.0):
+        sim.temp_c = t
+        settle()
+        code = imu.temp_raw()
+        acc.update(code)
+        law.update(code)
+        e_law = e_flat = 0.0
+        for g in dirs:
+            sim.set_motion(accel_g=tuple(g))
+            raw = [int(round(x)) for x in mean_raw(64)]
+            v = [0, 0, 0]
+            acc.apply_all(raw, v)
+            a = [0, 0, 0]
+            law.apply(v, a)
+            b = [0, 0, 0]
+            flat.apply(v, b)
+            e_law = max(e_law, float(np.max(np.abs(np.array(a) / 10.0 - 1000 * g))))
+            e_flat = max(e_flat, float(np.max(np.abs(np.array(b) / 10.0 - 1000 * g))))
+        print("MPU-6500 sim at %.0f degC: constant matrix %.2f mg, with the law %.2f mg" % (t, e_flat, e_law))
+        # 6.5e-3 of drift on two terms of a row: up to 9 mg on a tilted attitude
+        assert e_flat > 5.0
+        # noise: 1 mg per sample, 64-sample means (0.13 mg), the fit's 100-sample means, the
+        # 0.1 mg output step and the int rounding of the mean raw counts (0.03 mg)
+        assert e_law < 0.8
+
+
+def test_mpu_sim_cross_axis_stays_within_the_datasheet():
+    from tools.sim.mpu6xxx_sim import MPU6xxxSim
+
+    sim = MPU6xxxSim("MPU-6500", seed=1)
+    with pytest.raises(ValueError, match=r"N\[0\]\[1\] = 0.0262 at 85 degC is outside the datasheet's \+-2 %"):
+        sim.set_cross([[0, 0.013, 0], [0, 0, 0], [0, 0, 0]], [[0, 2.2e-4, 0], [0, 0, 0], [0, 0, 0]])
+    with pytest.raises(ValueError, match="diagonal"):
+        sim.set_cross([[0.01, 0, 0], [0, 0, 0], [0, 0, 0]])
+    assert sim.cross is None
+
+
+def test_cli_ellipsoid_refuses_poor_coverage(tmp_path):
+    # seed 49's twelve orientations crowd one hemisphere: exit status 2, one line naming them
+    rng = np.random.default_rng(49)
+    tr = S.truth(50, rng, rot=0.0)
+    dirs = rng.normal(size=(12, 3))
+    dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
+    raw = S.chamber({k: v[:1] for k, v in tr.items()}, TEMPS, dirs, 10, CPG, rng, noise_counts=3.0)
+    path = tmp_path / "ell.csv"
+    _csv(path, raw, ["o%d" % i for i in range(12)], TEMPS)
+    p = subprocess.run([sys.executable, "-m", "tools.fit", "sixpos", str(path), "--ellipsoid", "--json",
+                        str(tmp_path / "o.json"), "--counts-per-g", "8192", "--order", "2"], cwd=REPO,
+                       capture_output=True, text=True)
+    assert p.returncode == 2, p.stderr
+    err = p.stderr.strip()
+    assert len(err.splitlines()) == 1 and "ellipsoid fit refused: orientation coverage" in err, err
+    assert "add orientations with" in err and " up" in err
+    assert not (tmp_path / "o.json").exists()

@@ -34,7 +34,7 @@ t_hi_c, degree`` and the nine E_ij of each order 1..degree (per degC**k).
 """
 
 from tempcomp import record
-from tempcomp.fixedpoint import Poly, shift_basis
+from tempcomp.fixedpoint import Poly, code_span, shift_basis
 
 try:
     from micropython import const
@@ -63,21 +63,6 @@ def _nine(e, what):
         if v != v or v in (float("inf"), float("-inf")):
             raise ValueError("%s E[%d][%d] = %r is not finite" % (what, i // 3, i % 3, v))
     return out
-
-
-def _code_range(lo_c, hi_c, t_offset, t_scale):
-    # integer codes covering [lo_c, hi_c] degC (either sign of t_scale)
-    a = (lo_c - t_offset) / t_scale
-    b = (hi_c - t_offset) / t_scale
-    if a > b:
-        a, b = b, a
-    lo = int(a)
-    if lo > a:
-        lo -= 1
-    hi = int(b)
-    if hi < b:
-        hi += 1
-    return lo, hi
 
 
 class CrossAxis:
@@ -115,7 +100,7 @@ class CrossAxis:
             return
         if self.t_scale == 0 or self.t_scale != self.t_scale:
             raise ValueError("t_scale (degC per temperature code) must be non-zero")
-        lo, hi = _code_range(lo_c, hi_c, self.t_offset, self.t_scale)
+        lo, hi = code_span(lo_c, hi_c, self.t_offset, self.t_scale)
         code_room = (self.t_room - self.t_offset) / self.t_scale
         ref = int(round(code_room))
         polys = []

@@ -137,6 +137,21 @@ def shift_basis(coeffs, old_ref, new_ref):
     return out
 
 
+def code_span(lo_c, hi_c, t_offset, t_scale):
+    """(lo, hi) integer temperature codes covering lo_c..hi_c degC, T = code * t_scale + t_offset (set-up)."""
+    a = (lo_c - t_offset) / t_scale
+    b = (hi_c - t_offset) / t_scale
+    if a > b:
+        a, b = b, a
+    lo = int(a)
+    if lo > a:
+        lo -= 1
+    hi = int(b)
+    if hi < b:
+        hi += 1
+    return (lo, hi)
+
+
 def poly_value(coeffs, u):
     """Float value of sum coeffs[k] * u**k (set-up and checks; allocates)."""
     v = 0.0

@@ -76,27 +76,36 @@ class _Batch:
         self.p = p
         self.check = check
         self.t = t
-        self.last = None  # the last array out found to hold 32-bit signed words
+        self.lb = None  # the last buf and out the asm kernel took, and the out's tag
+        self.lo = None
+        self.tg = 0
 
     def many(self, buf, out, n, stride=6):
         if n < 1 or stride < 6 or (n - 1) * stride + 6 > len(buf) or 3 * n > len(out):
             self.check(buf, out, n, stride)  # raises unless n == 0 with a good stride
             return
-        p = self.p
+        if out is self.lo and buf is self.lb and n < 32768 and stride < 16384:
+            # the same objects as last time, so the same kinds: n, tag and stride in one word
+            self.t(self.p, buf, out, stride << 16 | self.tg | n)
+            return
+        self.slow(buf, out, n, stride)
+
+    def slow(self, buf, out, n, stride):
         t = self.t
-        if t is not None and isinstance(buf, _BUFFERS):
+        if t is not None and n < 32768 and stride < 16384 and isinstance(buf, _BUFFERS):
             if type(out) is list:
-                p[11] = stride
-                p[12] = 1  # store small-int objects (v << 1 | 1)
-                t(p, buf, out, n)
+                tg = 0x8000  # store small-int objects (v << 1 | 1)
+            elif type(out) is array.array and _int32(out):
+                tg = 0  # store the plain words
+            else:
+                tg = -1
+            if tg >= 0:
+                self.lb = buf
+                self.lo = out
+                self.tg = tg
+                t(self.p, buf, out, stride << 16 | tg | n)
                 return
-            if out is self.last or (type(out) is array.array and _int32(out)):
-                self.last = out
-                p[11] = stride
-                p[12] = 0  # store the plain words
-                t(p, buf, out, n)
-                return
-        _many(p, buf, out, n, stride)
+        _many(self.p, buf, out, n, stride)
 
 
 @micropython.viper

@@ -21,9 +21,17 @@ import micropython
 
 @micropython.asm_thumb
 def _many_list(r0, r1, r2, r3):
-    # r0: parameter words (g l c per axis at 0/12/24, k at 36, s at 40, stride at 44, and at 48
-    # the tag: 1 stores small-int objects (v << 1 | 1) into a list's items, 0 plain words)
-    # r1: the bytes, r2: the list's items or the int32 array's words, r3: samples left (>= 1)
+    # r0: parameter words (g l c per axis at 0/12/24, k at 36, s at 40; stride and tag go to 44, 48)
+    # r1: the bytes, r2: the list's items or the int32 array's words
+    # r3: stride << 16 | tag << 15 | n (n >= 1 samples; tag 1 stores small-int objects
+    # v << 1 | 1 into a list's items, 0 plain words into an int32 array)
+    lsr(r5, r3, 16)
+    str(r5, [r0, 44])
+    lsl(r4, r3, 16)
+    lsr(r4, r4, 31)
+    str(r4, [r0, 48])
+    lsl(r3, r3, 17)
+    lsr(r3, r3, 17)
     label(LOOP)
     # axis 0: v = sign-extended big-endian word
     ldrb(r4, [r1, 0])
@@ -98,13 +106,12 @@ def _many_list(r0, r1, r2, r3):
 
 def checked(reference):
     """_many_list if it reproduces reference (the viper kernel) on a known sample, else None."""
-    p = array.array("i", [5000, 12345, 7, -4000, 321, -999999, 1, 0, 123456789, 15, 6, 6, 1])
+    p = array.array("i", [5000, 12345, 7, -4000, 321, -999999, 1, 0, 123456789, 15, 6, 0, 0])
     buf = bytearray(b"\x80\x00\x7f\xff\x12\x34\xfe\xdc\x00\x01\xff\xff")
     want = [0] * 6
     reference(p, buf, want, 2, 6)
     got = [0] * 6
-    _many_list(p, buf, got, 2)
-    p[12] = 0
+    _many_list(p, buf, got, 6 << 16 | 0x8000 | 2)
     arr = array.array("i", got)
-    _many_list(p, buf, arr, 2)
+    _many_list(p, buf, arr, 6 << 16 | 2)
     return _many_list if got == want and list(arr) == want else None

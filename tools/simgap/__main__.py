@@ -34,6 +34,10 @@ def main(argv=None):
     ap.add_argument("--json", required=True, help="where to write the result")
     ap.add_argument("--plot", help="where to write the PNG")
     ap.add_argument("--quiet", action="store_true", help="no text summary")
+    ap.add_argument("--export", metavar="MODEL.json",
+                    help="write the augmented model for the board (lib/tempcomp/augment.py)")
+    ap.add_argument("--sensitivity", type=float,
+                    help="with --export: out units per ref unit where the log never moves the input")
     a = ap.parse_args(argv)
     try:
         hostio.check_output(a.json, "JSON")
@@ -73,6 +77,18 @@ def main(argv=None):
         return hostio.fail(e)
     if not a.quiet:
         print(text(res))
+    if a.export:
+        from .export import ExportError, write
+        try:
+            exp = write(a.export, res, train, a.sensitivity)
+        except ExportError as e:
+            print(f"error: --export: {e}", file=sys.stderr)
+            return 2
+        if not a.quiet:
+            on = sorted({e["name"] for e in exp["on_device"]})
+            print(f"exported {a.export}: base + {', '.join(on) or 'nothing (the base model)'}"
+                  + "".join(f"\n  not on the board: {e['name']} ({e['axis']}): {e['reason']}"
+                            for e in exp["not_on_device"]))
     return 0
 
 
