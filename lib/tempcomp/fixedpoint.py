@@ -137,6 +137,21 @@ def shift_basis(coeffs, old_ref, new_ref):
     return out
 
 
+def code_span(lo_c, hi_c, t_offset, t_scale):
+    """(lo, hi) integer temperature codes covering lo_c..hi_c degC, T = code * t_scale + t_offset (set-up)."""
+    a = (lo_c - t_offset) / t_scale
+    b = (hi_c - t_offset) / t_scale
+    if a > b:
+        a, b = b, a
+    lo = int(a)
+    if lo > a:
+        lo -= 1
+    hi = int(b)
+    if hi < b:
+        hi += 1
+    return (lo, hi)
+
+
 def poly_value(coeffs, u):
     """Float value of sum coeffs[k] * u**k (set-up and checks; allocates)."""
     v = 0.0
@@ -324,6 +339,10 @@ class Compensator:
         K = 1
         while (1 << K) < max(r_hi - mid, mid - r_lo):
             K += 1
+        if mid == 0:
+            # apply_be16 decodes whole int16 words, and a word outside a narrower signed range
+            # (a 14-bit part's +-8192, a glitch) must stay in bound too: |r| <= 2**15 = 2**K
+            K = 15
         self._mid = mid
         self._k = K
         self._kmask = (1 << K) - 1
@@ -379,11 +398,28 @@ class Compensator:
         self.clamped = 0
         self._t = None
         # the unrolled 3-axis burst path needs signed int16 raw codes (raw range middle 0)
-        self._p3 = [0] * 11 if (n == 3 and mid == 0) else None
+        self._p3 = None
+        self._nk = None
+        if n == 3 and mid == 0:
+            nk = _kernels() if _native is not False else None
+            if nk is not None:
+                # native kernels read the 11 numbers (and the batch's stride and output tag)
+                # from a 32-bit array; the pure path unpacks a list faster
+                self._p3 = nk.params()
+                self._nk = nk.kernels(self._p3, self._check_n)
+            else:
+                self._p3 = [0] * 11
         self.update(self._t_lo)
-        if self._p3 is not None:
-            # bound once here: calling a stored bound method allocates nothing
+        if mid != 0:
+            # a signed word minus a middle far from 0 may leave |r| <= 2**15
+            self.apply_be16 = self._be16_refused  # type: ignore[assignment]
+            self.apply_be16_n = self._be16_refused
+        elif self._nk is not None:
+            # closures over the parameter array: calling them allocates nothing
+            self.apply_be16, self.apply_be16_n = self._nk
+        elif self._p3 is not None:
             self.apply_be16 = self._be16_3
+            self.apply_be16_n = self._be16_3n
 
     def _set_offset(self, k, coeffs, t_range, t_ref, what):
         # Offset polynomial k in fixed point and its exponent in update()'s division
@@ -455,6 +491,63 @@ class Compensator:
             i += 1
             j += 2
 
+    def _be16_refused(self, buf, out, n=1, stride=6):
+        raise ValueError(
+            "apply_be16 decodes signed int16 words; raw_range %r is not centred on 0: use apply()"
+            % (self.raw_range,)
+        )
+
+    def _check_n(self, buf, out, n, stride):
+        # checked before any word is read: the native kernels index the buffers unchecked
+        if n < 0 or stride < 2 * self.axes:
+            raise ValueError("apply_be16_n: need n >= 0 and stride >= %d, got n=%r stride=%r" % (2 * self.axes, n, stride))
+        if n and (n - 1) * stride + 2 * self.axes > len(buf):
+            raise ValueError("apply_be16_n: %d samples at stride %d need %d bytes, buf has %d" % (n, stride, (n - 1) * stride + 2 * self.axes, len(buf)))
+        if self.axes * n > len(out):
+            raise ValueError("apply_be16_n: %d samples need %d outputs, out has %d" % (n, self.axes * n, len(out)))
+
+    def apply_be16_n(self, buf, out, n, stride=6):
+        """Compensate n bursts (sample i's words at buf[i*stride:]) into out[axes*i + axis].
+
+        The same numbers as n calls of apply_be16 on buf[i*stride:]; zero allocation.
+        """
+        self._check_n(buf, out, n, stride)
+        gh = self._gh
+        gl = self._gl
+        b = self._b
+        s = self._s
+        half = self._half
+        k = self._k
+        na = self.axes
+        m = na * n
+        i = 0
+        j = 0
+        while i < m:
+            a = 0
+            while a < na:
+                v = ((buf[j + 2 * a] << 8 | buf[j + 2 * a + 1]) ^ 0x8000) - 0x8000
+                out[i + a] = (v * gh[a] + ((v * gl[a]) >> k) - b[a] + half) >> s
+                a += 1
+            i += na
+            j += stride
+
+    def _be16_3n(self, buf, out, n, stride=6):
+        # apply_be16_n for the unrolled 3-axis case: _be16_3's arithmetic (and bound) per sample
+        self._check_n(buf, out, n, stride)
+        g0, l0, b0, g1, l1, b1, g2, l2, b2, k, s = self._p3  # type: ignore[misc]  # set when bound
+        i = 0
+        j = 0
+        m = 3 * n
+        while i < m:
+            v = ((buf[j] << 8 | buf[j + 1]) ^ 0x8000) - 0x8000
+            out[i] = (v * g0 + ((v * l0) >> k) - b0) >> s
+            v = ((buf[j + 2] << 8 | buf[j + 3]) ^ 0x8000) - 0x8000
+            out[i + 1] = (v * g1 + ((v * l1) >> k) - b1) >> s
+            v = ((buf[j + 4] << 8 | buf[j + 5]) ^ 0x8000) - 0x8000
+            out[i + 2] = (v * g2 + ((v * l2) >> k) - b2) >> s
+            i += 3
+            j += stride
+
     def _be16_3(self, buf, out):
         # The common 3-axis int16 burst, unrolled, with every per-axis number in one flat list
         # unpacked onto the stack (no allocation) and the rounding half folded into the offset
@@ -484,6 +577,41 @@ class Compensator:
         t = self._t
         self._t = None
         self.update(t)
+
+
+_native = None  # None: native kernels where the interpreter has them; True/False: forced
+_nmod = None  # the kernel module once imported
+_ntried = False
+
+
+def _kernels():
+    # imported on first use, so boot RAM holds no native code until a 3-axis path is built
+    global _nmod, _ntried
+    if not _ntried:
+        _ntried = True
+        try:
+            from tempcomp import native
+
+            _nmod = native
+        except (ImportError, SyntaxError, ValueError, NotImplementedError):
+            # CPython (no micropython module), a port without the viper emitter, or a .mpy
+            # compiled for another architecture
+            pass
+    return _nmod
+
+
+def use_native(on=None):
+    """Choose the 3-axis int16 kernels of Compensators built from now on.
+
+    None (default): native (viper) where the interpreter has the emitter, else pure Python;
+    True: native or ValueError; False: pure Python. Returns True when native will be used.
+    Both give bit-identical results.
+    """
+    global _native
+    if on and _kernels() is None:
+        raise ValueError("use_native(True): this interpreter has no @micropython.viper emitter")
+    _native = None if on is None else bool(on)
+    return _native is not False and _kernels() is not None
 
 
 def _gain_num(e, d):
