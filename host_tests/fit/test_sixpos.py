@@ -512,3 +512,22 @@ def test_mpu_sim_cross_axis_stays_within_the_datasheet():
     with pytest.raises(ValueError, match="diagonal"):
         sim.set_cross([[0.01, 0, 0], [0, 0, 0], [0, 0, 0]])
     assert sim.cross is None
+
+
+def test_cli_ellipsoid_refuses_poor_coverage(tmp_path):
+    # seed 49's twelve orientations crowd one hemisphere: exit status 2, one line naming them
+    rng = np.random.default_rng(49)
+    tr = S.truth(50, rng, rot=0.0)
+    dirs = rng.normal(size=(12, 3))
+    dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
+    raw = S.chamber({k: v[:1] for k, v in tr.items()}, TEMPS, dirs, 10, CPG, rng, noise_counts=3.0)
+    path = tmp_path / "ell.csv"
+    _csv(path, raw, ["o%d" % i for i in range(12)], TEMPS)
+    p = subprocess.run([sys.executable, "-m", "tools.fit", "sixpos", str(path), "--ellipsoid", "--json",
+                        str(tmp_path / "o.json"), "--counts-per-g", "8192", "--order", "2"], cwd=REPO,
+                       capture_output=True, text=True)
+    assert p.returncode == 2, p.stderr
+    err = p.stderr.strip()
+    assert len(err.splitlines()) == 1 and "ellipsoid fit refused: orientation coverage" in err, err
+    assert "add orientations with" in err and " up" in err
+    assert not (tmp_path / "o.json").exists()

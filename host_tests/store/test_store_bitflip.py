@@ -7,6 +7,7 @@ import pytest
 from storecut import FakeNvm, ram_dir
 
 from tempcomp import store as st
+from tempcomp import store_write
 
 OLD = (10, -20, 30, 2**31 - 1)
 NEW = (11, -21, 31, -(2**31))
@@ -110,7 +111,7 @@ def test_nvm_flip_in_either_slot():
     s.save("g", OLD)  # slot A, generation 1
     s.save("g", NEW)  # slot B, generation 2
     good = bytes(nvm.b)
-    n = len(st._encode(2, [st.Record("g", NEW, [0] * 4)]))
+    n = len(store_write._encode(2, [st.Record("g", NEW, [0] * 4)]))
     for slot, expect in ((256, OLD), (0, NEW)):
         for bit in range(8 * n):
             nvm.b[:] = _flip(good, 8 * slot + bit)

@@ -4,10 +4,11 @@ integers with zero allocation.
 
 The model (all floats, set-up only; ``docs/augment.md`` has the table)::
 
-    out_i = o_i(T) + dO_i + s_i(T) * ((1 + e_i) * ref_i + sum_k K_ik(T) * ref_k)
+    out_i = o_i(T) + dO_i + s_i(T) * ref_i + s_i(t0) * (e_i * ref_i + sum_k K_ik(T) * ref_k)
 
-with ``dO_i = sum_j c_ij f_j`` (raw output units) and ``e_i = sum_j g_ij f_j`` (a fraction of the
-sensitivity), ``K_ik(T) = k0 + k1 * dT`` (cross-axis / g into another axis' input), over
+with o_i up to cubic and s_i linear in dT = T - t0, ``dO_i = sum_j c_ij f_j`` (raw output
+units), ``e_i = sum_j g_ij f_j`` (a fraction of the sensitivity at t0) and
+``K_ik(T) = k0 + k1 * dT`` (cross-axis: another axis' input), over
 features ``f_j`` the board computes from what it sees each sample:
 
 ==========  ==================================================================  ==========
@@ -47,9 +48,10 @@ Fixed point (B = 2**30 is the small-int bound; every clamp is counted in ``clamp
 * The base step is the Compensator's, with dO's integer part taken off the raw code and its
   8-bit fraction times the gain's high limb (<= 2**21) added: the sum stays below 2**30, and
   the result keeps 2 guard bits (|y| <= 2**25).
-* 1/(1+e) by its series to e**4 (error < 2**-19 of y) and the cross-axis solve by two
-  fixed-point iterations y = (y0 - K y) / (1 + e) (error ~|K|**3 of y); all products Q28 by
-  14-bit limbs (``_mul28``).
+* e and K are scaled by rho = s(t0)/s(T) (Q28, from the Compensator's gain, on a new
+  reading); 1/(1+e) by its series to e**4 (error < 2**-15 of y) and the cross-axis solve by
+  two fixed-point iterations y = (y0 - K y) / (1 + e) (error ~|K|**3 of y); all products Q28
+  by 14-bit limbs (``_mul28``).
 """
 
 try:
@@ -62,7 +64,7 @@ except ImportError:
 
 import time
 
-from tempcomp.fixedpoint import EXTRAPOLATE, Compensator, mul_shift, shift_basis
+from tempcomp.fixedpoint import EXTRAPOLATE, Compensator, div_pow2, mul_shift, shift_basis
 
 FORMAT = const(1)
 _FV = const(12)  # fraction bits of filter states (t reading * 2**12)
@@ -147,7 +149,7 @@ def from_store(store, name):
 
 # Flat form for the coefficient store (one float per value, see docs/augment.md):
 # FORMAT, t_lsb, t_off, raw_lsb, raw_lo, raw_hi, out_scale, t0, tc_lo, tc_hi, supply_lsb,
-# supply0, acc_lsb, then per axis o0 o1 o2 s0 s1, then nfeat and per feature
+# supply0, acc_lsb, then per axis o0 o1 o2 o3 s0 s1, then nfeat and per feature
 # kind, p1, p2, p3 (tau/width/axis/a, lag/b, bound), then per axis
 # n_off (fi c)*, n_gain (fi g)*, n_cross (k k0 k1)*.
 _HEAD = ("t_lsb", "t_off", "raw_lsb", "raw_lo", "raw_hi", "out_scale", "t0", "tc_lo", "tc_hi",
@@ -163,7 +165,8 @@ def pack(m):
          m.get("out_scale", 1.0), m.get("t0", 25.0), m["t_cal"][0], m["t_cal"][1],
          m.get("supply_lsb", 0.001), m.get("supply0", 0.0), m.get("acc_lsb", 0.001)]
     for i in range(3):
-        v += list(m["offset"][i]) + list(m["sensitivity"][i])
+        o = [float(c) for c in m["offset"][i]]
+        v += (o + [0.0] * (4 - len(o))) + [float(c) for c in m["sensitivity"][i]]
     feats = m.get("features", [])
     v.append(len(feats))
     for f in feats:
@@ -193,9 +196,9 @@ def unpack(v):
     m["offset"] = []
     m["sensitivity"] = []
     for _ in range(3):
-        m["offset"].append(v[p:p + 3])
-        m["sensitivity"].append(v[p + 3:p + 5])
-        p += 5
+        m["offset"].append(v[p:p + 4])
+        m["sensitivity"].append(v[p + 4:p + 6])
+        p += 6
     n = int(v[p])
     p += 1
     feats = []
@@ -392,6 +395,12 @@ class Augmented:
         self._inv = [_ONE, _ONE, _ONE]
         self._kmat = [0] * 9
         self._cross = any(self._kk[i] for i in range(3))
+        # rho_i(T) = s_i(t0) / s_i(T): the terms are fractions of the sensitivity at t0
+        self._rho_on = self._cross or any(self._gc[i] for i in range(3))
+        self._rho = [_ONE, _ONE, _ONE]
+        self._rt = None
+        c.update(self._t0 if t_lo <= self._t0 <= t_hi else (t_lo + t_hi) // 2)
+        self._g0 = [((c._gh[i] << c._k) + c._gl[i]) >> 2 for i in range(3)]
         self.start(0)
 
     def _set_feat(self, j, nat, unit):
@@ -605,6 +614,13 @@ class Augmented:
         if self._f:
             self._features(t, supply, acc)
         f = self._f
+        if self._rho_on and t != self._rt:
+            self._rt = t
+            i = 0
+            while i < 3:
+                # G = gain * 2**(K+S) <= 2**28; G / G0 < 2 (the scale varies at most 2x)
+                self._rho[i] = div_pow2(((c._gh[i] << c._k) + c._gl[i]) >> 2, _Q, self._g0[i])
+                i += 1
         gh = c._gh
         gl = c._gl
         b = c._b
@@ -647,7 +663,8 @@ class Augmented:
                 while j < n:
                     e += mul_shift(cs[j], f[fi[j]], 15)
                     j += 1
-                # 1 / (1 + e) = 1 - e (1 - e (1 - e (1 - e))) + O(e**5), |e| <= 1/16
+                e = _mul28(self._rho[i], e)
+                # 1 / (1 + e) = 1 - e (1 - e (1 - e (1 - e))) + O(e**5), |e| <= 1/8
                 q = _ONE - e
                 q = _ONE - _mul28(e, q)
                 q = _ONE - _mul28(e, q)
@@ -664,7 +681,7 @@ class Augmented:
                 ks = self._kk[i]
                 j = 0
                 while j < len(ks):
-                    km[i * 3 + ks[j]] = self._kc[i][j] + mul_shift(self._k1[i][j], dtf, 15)
+                    km[i * 3 + ks[j]] = _mul28(self._rho[i], self._kc[i][j] + mul_shift(self._k1[i][j], dtf, 15))
                     j += 1
                 y[i] = _mul28(y0[i], inv[i])
                 i += 1

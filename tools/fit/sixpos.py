@@ -10,7 +10,9 @@ cross-axis sensitivity (non-orthogonality); its antisymmetric part is a small ro
 (misalignment between the sensor and the fixture). With six or more known orientations this
 is linear least squares with one design shared by every unit (one pseudo-inverse for
 10,000 units). With 9..12 *unknown* orientations (``ellipsoid=True``) |M^-1 (raw - b)| = 1 g
-is fitted as a quadric; M is then the symmetric one, so misalignment is not observable.
+is fitted as a quadric; M is then the symmetric one, so misalignment is not observable. How well
+the orientations cover the sphere is checked from the directions found (``check_coverage``):
+the fit warns, or refuses, naming face/edge/corner attitudes to add.
 
 Each coefficient's temperature dependence is a polynomial in T - t_room (order <= number of
 temperatures - 1), fitted per unit. The device applies the per-axis part as AN12760 (offset,

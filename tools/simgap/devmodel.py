@@ -136,7 +136,8 @@ def predict(m, inp, ref, F=None):
     o, s = _base(m, T)
     dO, e, K = _terms(m, F, T - t0_aligned(m))
     cross = np.einsum("nik,nk->ni", K, ref)
-    return o + dO + s * ((1 + e) * ref + cross)
+    s0 = np.array([m["sensitivity"][i][0] for i in range(3)])
+    return o + dO + s * ref + s0 * (e * ref + cross)
 
 
 def compensate(m, inp, F=None):
@@ -147,6 +148,9 @@ def compensate(m, inp, F=None):
     dO, e, K = _terms(m, F, T - t0_aligned(m))
     out = inp["raw"] * m.get("raw_lsb", 1.0)
     y0 = (out - o - dO) / s
+    s0 = np.array([m["sensitivity"][i][0] for i in range(3)])
     A = K.copy()
-    A[:, [0, 1, 2], [0, 1, 2]] += 1 + e
+    A[:, [0, 1, 2], [0, 1, 2]] += e
+    A *= (s0 / s)[:, :, None]
+    A[:, [0, 1, 2], [0, 1, 2]] += 1
     return np.linalg.solve(A, y0[:, :, None])[:, :, 0]
