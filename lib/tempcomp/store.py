@@ -31,6 +31,7 @@ KIND_MPU_POLY        2 MPU-6050/6500 offset registers and offset(T) polynomials
 KIND_ADI_3POINT      3 ADI three-point (cold/room/hot) calibration
 KIND_AN12760         4 NXP AN12760 per-axis offset and sensitivity vs temperature
 KIND_ELLIPSOID       5 ellipsoid fit: offsets and 3x3 matrix
+KIND_AUGMENT         6 augmented model from the gap diagnosis (tempcomp.augment.pack)
 ==================== = ==================================================================
 
 ``t_unit`` says what ``t_lo``/``t_hi`` (the calibrated temperature span) count: ``T_NONE`` (no
@@ -89,6 +90,7 @@ KIND_MPU_POLY = const(2)
 KIND_ADI_3POINT = const(3)
 KIND_AN12760 = const(4)
 KIND_ELLIPSOID = const(5)
+KIND_AUGMENT = const(6)
 
 T_NONE = const(0)
 T_RAW = const(1)

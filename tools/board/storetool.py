@@ -4,6 +4,7 @@
     python -m tools.board.storetool bin2json tempcomp.cal -o cal.json
     python -m tools.board.storetool json2bin cal.json -o tempcomp.cal
     python -m tools.board.storetool export tempcomp.cal -o calib_const.py   # const() module to freeze
+    python -m tools.board.storetool put tempcomp.cal model.json --name gyro_aug  # add --export's model
     ... --nvm            the file is a dump of CircuitPython's microcontroller.nvm (two slots)
     ... json2bin --nvm 4096   write a 4096-byte nvm image (slot A used, the rest erased 0xFF)
 
@@ -28,7 +29,8 @@ MAGIC = b"TCAL"
 FORMAT = 1
 HEADER = struct.Struct("<4sHHII")  # magic, version, count, total length, generation
 ENTRY = struct.Struct("<HBBBBBBHHiiII")  # see docs/store.md "Entry"
-KINDS = ["raw", "mlx90609_rezero", "mpu_offset_poly", "adi_three_point", "an12760_axis", "ellipsoid"]
+KINDS = ["raw", "mlx90609_rezero", "mpu_offset_poly", "adi_three_point", "an12760_axis", "ellipsoid",
+         "augment"]
 T_UNITS = ["none", "raw", "centi_degC", "mV"]
 
 
@@ -311,6 +313,43 @@ def export_text(doc):
     return "\n".join(lines) + "\n"
 
 
+def put(path, model_path, name, part=""):
+    """Add the exported model's store values as record `name` (kind augment) to the store at
+    path, keeping every other record; a new generation, written only once it checks."""
+    import os
+
+    model = hostio.load_json(model_path)
+    st = model.get("store") if isinstance(model, dict) else None
+    if not isinstance(st, dict) or "values" not in st:
+        raise hostio.HostError("%s: no 'store' section; write the model with python -m tools gap ... --export"
+                               % model_path)
+    if os.path.exists(path):
+        try:
+            _, doc, _ = newest(read_copies(path), False)
+        except FormatError as e:
+            raise hostio.HostError("%s: %s" % (path, e)) from None
+        recs = [r for r in doc["records"] if r["name"] != name]
+        gen = doc["generation"] + 1
+    else:
+        recs, gen = [], 1
+    for r in recs:
+        for k in ("real", "time_utc"):
+            r.pop(k, None)
+    recs.append({"name": name, "part": part, "serial": "", "kind": "augment", "t_unit": "none",
+                 "t_span": [0, 0], "counter": gen, "time": 0, "values": st["values"], "frac": st["frac"]})
+    doc = {"format": FORMAT, "generation": gen, "records": recs}
+    try:
+        check_doc(doc)
+        image = encode_image(doc)
+        decode_image(image)
+        device_check(image)
+    except FormatError as e:
+        raise hostio.HostError("%s: %s" % (model_path, e)) from None
+    hostio.write_all([(path, image)])
+    print("%s: record %r (augmented model, %d values), generation %d" % (path, name, len(st["values"]), gen))
+    return 0
+
+
 def main(argv=None):
     ap = hostio.Parser(prog="python -m tools.board.storetool", description=__doc__.split("\n")[0])
     sub = ap.add_subparsers(dest="cmd", required=True)
@@ -324,8 +363,15 @@ def main(argv=None):
     p.add_argument("json")
     p.add_argument("-o", "--out", required=True)
     p.add_argument("--nvm", type=int, metavar="SIZE", help="write a SIZE-byte nvm image")
+    p = sub.add_parser("put", help="add (or replace) the model written by simgap --export as a record")
+    p.add_argument("store", help="the store file (created if absent)")
+    p.add_argument("model", help="MODEL.json from python -m tools gap ... --export")
+    p.add_argument("--name", required=True, help="record name the board loads it by")
+    p.add_argument("--part", default="", help="part name kept with the record")
     a = ap.parse_args(argv)
     try:
+        if a.cmd == "put":
+            return put(a.store, a.model, a.name, a.part)
         if a.cmd != "dump":
             hostio.check_output(a.out)
         if a.cmd == "json2bin":

@@ -43,6 +43,10 @@ def options(cmd, order=1, t_room=25.0, temp_tol=1.0, full_scale_mg=None, counts_
         raise FitError("unknown fit %r (one of %s)" % (cmd, ", ".join(COLUMNS)))
     if cmd == "sixpos" and not (counts_per_g is not None and np.isfinite(counts_per_g) and counts_per_g > 0):
         raise FitError("--counts-per-g must be a positive number of counts per g, got %r" % (counts_per_g,))
+    if order not in (1, 2, 3):
+        raise FitError("--order must be 1, 2 or 3 (a temperature law of that order), got %r" % (order,))
+    if raw_range[0] >= raw_range[1]:
+        raise FitError("--raw-min %d must be below --raw-max %d (the part's output range)" % tuple(raw_range))
     if not (np.isfinite(temp_tol) and temp_tol > 0):
         raise FitError("--temp-tol must be a positive number of degC, got %r" % (temp_tol,))
     if not np.isfinite(t_room):

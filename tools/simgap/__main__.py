@@ -8,9 +8,21 @@ import numpy as np
 from tools import hostio
 
 from .diagnose import diagnose
-from .logio import LogError, read_log
+from .logio import LIMIT, LogError, read_log
 from .model import FixedModel
 from .report import plot, text
+
+
+def _huge(obj, where):
+    """(key path, value) of the first number in a JSON document at or beyond LIMIT, or None."""
+    if isinstance(obj, (int, float)) and not isinstance(obj, bool):
+        return None if abs(obj) < LIMIT else (where, obj)
+    items = obj.items() if isinstance(obj, dict) else enumerate(obj) if isinstance(obj, list) else ()
+    for k, v in items:
+        bad = _huge(v, "%s.%s" % (where, k) if isinstance(obj, dict) else "%s[%d]" % (where, k))
+        if bad:
+            return bad
+    return None
 
 
 def main(argv=None):
@@ -30,10 +42,15 @@ def main(argv=None):
     try:
         hostio.check_output(a.json, "JSON")
         hostio.check_output(a.plot, "plot")
+        if a.plot and not a.plot.lower().endswith(".png"):
+            raise hostio.HostError("%s: --plot writes a PNG; give a name ending in .png" % a.plot)
         train = read_log(a.train)
         withheld = read_log(a.withheld) if a.withheld else None
-        if a.model:
-            hostio.load_json(a.model)  # encoding and syntax named by line; the fields by FixedModel
+        if a.model:  # encoding, syntax and absurd numbers named here; the fields by FixedModel
+            bad = _huge(hostio.load_json(a.model), "model")
+            if bad:
+                raise hostio.HostError("%s: %s = %r is beyond any sim coefficient (|value| < %g)"
+                                       % (a.model, bad[0], bad[1], LIMIT))
         model = FixedModel.load(a.model) if a.model else None
     except (LogError, hostio.HostError) as e:
         return hostio.fail(e)

@@ -121,15 +121,15 @@ def _split(cols, mask):
 
 def convert(data_dir, out_dir):
     """Write all converted logs; returns {name: (train path, withheld path)}."""
+    gyro, acc, meta = tofupilot(os.path.join(data_dir, TOFU_REL))
+    pg, pmeta = pan(os.path.join(data_dir, PAN_REL))  # every input read before anything is written
     os.makedirs(out_dir, exist_ok=True)
     done = {}
-    gyro, acc, meta = tofupilot(os.path.join(data_dir, TOFU_REL))
     train = np.arange(len(gyro["time_s"])) < TOFU_SPLIT
     for name, cols, sensor, ref_unit, unit in (("tofupilot_gyro", gyro, "gyro", "dps", "mdps"),
                                                ("tofupilot_accel", acc, "accel", "g", "mg")):
         m = dict(meta, sensor=sensor, ref_unit=ref_unit, out_unit=unit)
         done[name] = _write_pair(out_dir, name, *_split(cols, train), m)
-    pg, pmeta = pan(os.path.join(data_dir, PAN_REL))
     burst = np.arange(len(pg["time_s"])) // PAN_BURST
     train = ~np.isin(burst, list(PAN_HELD_BURSTS))
     m = dict(pmeta, sensor="gyro", ref_unit="dps", out_unit="mdps")
