@@ -41,8 +41,6 @@ just before each capture (a robot arm, or the virtual board's ``vboard_sensors.w
 import time
 
 from tempcomp import sensors as _sensors
-from tempcomp.mpu6xxx_tc import BiasModel
-from tempcomp.store import Store
 
 
 def _now_ms():
@@ -425,6 +423,9 @@ class Session:
         return r
 
     def _apply_and_save(self):
+        from tempcomp.mpu6xxx_tc import BiasModel  # loaded here, at the end: the session's heap
+        from tempcomp.store import Store  # during the captures stays small (docs/ram.md)
+
         s = self.s
         r = self.result
         st = Store(self.store_path)
