@@ -438,14 +438,14 @@ class MPU6xxx:
         # both Compensators' 3-axis numbers (fixedpoint's burst path: gain limbs, offset term
         # with the rounding half, K = 15, S), unrolled as in Compensator._be16_3 and with its
         # bound: |v*g| <= 2**28, |(v*l) >> 15| < 2**15, |c| <= 2**29 + 2**23
-        g0, l0, c0, g1, l1, c1, g2, l2, c2, k, s = ca._p3
+        g0, l0, c0, g1, l1, c1, g2, l2, c2, k, s = ca._p3  # type: ignore[misc]  # 3 int16 axes
         v = ((b[0] << 8 | b[1]) ^ 0x8000) - 0x8000
         out[0] = (v * g0 + ((v * l0) >> k) - c0) >> s
         v = ((b[2] << 8 | b[3]) ^ 0x8000) - 0x8000
         out[1] = (v * g1 + ((v * l1) >> k) - c1) >> s
         v = ((b[4] << 8 | b[5]) ^ 0x8000) - 0x8000
         out[2] = (v * g2 + ((v * l2) >> k) - c2) >> s
-        g0, l0, c0, g1, l1, c1, g2, l2, c2, k, s = cg._p3
+        g0, l0, c0, g1, l1, c1, g2, l2, c2, k, s = cg._p3  # type: ignore[misc]
         v = ((b[8] << 8 | b[9]) ^ 0x8000) - 0x8000
         out[3] = (v * g0 + ((v * l0) >> k) - c0) >> s
         v = ((b[10] << 8 | b[11]) ^ 0x8000) - 0x8000
