@@ -19,3 +19,20 @@ from tools.firmware import mpvm as _mpvm  # noqa: E402
 def mpvm():
     """Run code in the real MicroPython VM: mpvm(code) -> stdout (raises on a Python error)."""
     return _mpvm.run
+
+
+import interps as _interps  # noqa: E402  (host_tests/helpers/interps.py)
+
+
+@pytest.fixture(scope="session")
+def _close_interps():
+    yield
+    _interps.close_all()
+
+
+@pytest.fixture(scope="session", params=_interps.INTERPRETERS)
+def interp(request, _close_interps):
+    """Each real interpreter in turn (wasm VM, Cortex-M3 and M7 firmware, CircuitPython), started once
+    per session: interp.run(code, mounts=(), paths=()) -> stdout, raising on a Python error; interp.name.
+    One interpreter only: @pytest.mark.parametrize("interp", ["an385"], indirect=True)."""
+    return _interps.get(request.param)

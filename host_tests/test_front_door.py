@@ -27,8 +27,6 @@ def test_help_lists_every_command():
 
 @pytest.mark.parametrize("name", sorted(COMMANDS))
 def test_each_command_helps_with_an_example(name):
-    if name == "replay" and not (REPO_PATH / "tools" / "simgap" / "replay.py").exists():
-        pytest.xfail("tools.simgap.replay (issue #16) is not on this branch yet")
     r = run("tools", name, "--help")
     assert r.returncode == 0, r.stderr
     assert "usage:" in r.stdout

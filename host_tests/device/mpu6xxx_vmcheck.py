@@ -56,15 +56,15 @@ def allocations():
     img[0x3B:0x49] = sim._sample()  # data registers hold a real sample
     bus = ReplayI2C(img, stream, 16 * 12, t_base=t0 - 256, t_step=8, t_span=64)
     imu = MPU6xxx(bus)
-    imu._begin(MAX_PACKETS - 100, 0)
-    allocprobe.report("mpu_fifo_poll_16_packets", imu._poll, (), 200)
-    allocprobe.report("mpu_accumulate_16_packets", imu._accumulate, (0, 16), 200)
+    imu._cal()._begin(MAX_PACKETS - 100, 0)
+    allocprobe.report("mpu_fifo_poll_16_packets", imu._cal()._poll, (), 200)
+    allocprobe.report("mpu_accumulate_16_packets", imu._cal()._accumulate, (0, 16), 200)
     model = BiasModel(model_points(t0))
     imu.compensate(model)
     out = array("i", [0] * 7)
     allocprobe.report("mpu_read_compensated", imu.read_compensated, (out,), 200)
     allocprobe.report("mpu_temp_c100", imu.temp_c100, (), 200)
-    print("GOT %d" % imu._got)
+    print("GOT %d" % imu._cal()._got)
 
 
 def compensation_grid():

@@ -9,6 +9,7 @@ from array import array
 import allocprobe
 
 from tempcomp import store as st
+from tempcomp import store_write
 
 
 class PowerCut(BaseException):
@@ -49,7 +50,7 @@ def torn_writes(p):
     old = (1, 2, 2147483647)
     new = (-5, -6, -2147483648)
     real_open = builtins.open
-    n = len(st._encode(1, [st.Record("g", new, [0] * 3)]))
+    n = len(store_write._encode(1, [st.Record("g", new, [0] * 3)]))
     good = True
     for k in (0, 1, 4, 15, 16, 40, n - 5, n - 1, n):
         _rm(p)

@@ -1,10 +1,12 @@
 """AN12760, analog gyro and cross-axis paths in the real MicroPython VM: results and zero allocation."""
 
 
+import interps
 import numpy as np
 from paths import REPO
 
 from tempcomp.an12760 import AN12760
+from tempcomp.crossaxis import CrossAxis
 from tools.firmware.mpvm import alloc_lines
 from tools.fit import an12760 as F
 
@@ -90,15 +92,37 @@ def cross():
 allocprobe.report("crossaxis", cross, (), 300)
 ca.apply(array("i", [150000, -200000, 262143]), out)
 print("CROSS", out[0], out[1], out[2])
+
+# cross-axis with a quadratic temperature law, MPU-6500 codes; per sample a new code + apply
+cl = CrossAxis(LAW0, law=LAW1, t_span_c=(-40, 85), t_scale=1 / 333.87, t_offset=21.0)
+tcodes = array("i", [cl.code_of(-55 + 0.9 * i) for i in range(170)])  # across and beyond the span
+def cross_law():
+    i = st[0]
+    i = i + 1 if i < 169 else 0
+    st[0] = i
+    v[0] = -v[0]
+    cl.update(tcodes[i])
+    cl.apply(v, out)
+allocprobe.report("crossaxis_law", cross_law, (), 300)
+for c in CODES:
+    cl.update(c)
+    cl.apply(array("i", [150000, -200000, 262143]), out)
+    print("CLAW", c, out[0], out[1], out[2])
 """
 
+LAW0 = [0.01, -0.004, 0.02, 0.004, -0.002, 0.001, -0.002, -0.031, 0.0005]
+LAW1 = [[1e-4, -1e-4, 2e-5, 1e-4, 0.0, -3e-5, 1e-4, 1.5e-4, -1e-4], [1e-6, -5e-7, 0.0, 2e-7, 8e-7, 0.0, -1e-6, 0.0, 3e-7]]
+T_SCALE = 1 / 333.87
+CODES = [int(round((t - 21.0) / T_SCALE)) for t in (-60.0, -40.0, -7.5, 25.0, 61.0, 85.0, 110.0)]
 
-def test_vm_results_and_zero_allocation(mpvm):
+
+def test_vm_results_and_zero_allocation(interp):
     T = [-40, -40, -40, 25, 25, 25, 105, 105, 105]
     G = [-1.0, 0.0, 1.0] * 3
     raw = [int(round(v * 16.384)) for v in F.simulate_mg(np.array(T, float), np.array(G), -20.0, 1.0, 0.0264, -0.001)]
-    code = VM_CODE.replace("ROWS", repr(list(zip(T, raw))))
-    out = mpvm(code, mounts=(REPO + "/tools:/tools",), paths=("/",))
+    code = VM_CODE.replace("ROWS", repr(list(zip(T, raw)))).replace("LAW0", repr(LAW0)).replace(
+        "LAW1", repr(LAW1)).replace("CODES", repr(CODES))
+    out = interps.run(interp, code, mounts=(REPO + "/tools/sim:/tools/sim",), paths=("/",))
     lines = {ln.split()[0]: ln.split()[1:] for ln in out.splitlines() if ln and not ln.startswith("ALLOC")}
     # AN12760 Table 10 AccTCOTCS in the VM: exactly -1000.0 / 0.0 / +1000.0 mg (0.1 mg units)
     assert [int(v) for v in lines["T10"]] == [-10000, 0, 10000] * 3
@@ -116,7 +140,21 @@ def test_vm_results_and_zero_allocation(mpvm):
     v = np.array([150000, -200000, 262143])
     E = np.array([[0.001, -0.004, 0.002], [0.004, -0.002, 0.001], [-0.002, -0.001, 0.0005]])
     assert np.max(np.abs(np.array([int(x) for x in lines["CROSS"]]) - (v + E @ v))) < 0.9
+    # cross-axis temperature law: the VM's integers are CPython's, and within 0.8 LSB of float64
+    # (I + E(T)) v with T from the code, held at the span's edges
+    cl = CrossAxis(LAW0, law=LAW1, t_span_c=(-40, 85), t_scale=T_SCALE, t_offset=21.0)
+    got = [[int(x) for x in ln.split()[1:]] for ln in out.splitlines() if ln.startswith("CLAW ")]
+    assert [g[0] for g in got] == CODES
+    for c, *o in got:
+        host = [0, 0, 0]
+        cl.update(c)
+        cl.apply([150000, -200000, 262143], host)
+        assert o == host
+        d = min(max(c * T_SCALE + 21.0, -40.0), 85.0) - 25.0
+        E = (np.array(LAW0) + np.array(LAW1[0]) * d + np.array(LAW1[1]) * d * d).reshape(3, 3)
+        assert np.max(np.abs(np.array(o) - (v + E @ v))) < 0.8, (c, o)
     probes = alloc_lines(out)
-    assert set(probes) == {"an12760_sample", "an12760_be16", "adxrs_rate", "adxrs_rate_smooth", "crossaxis"}
+    assert set(probes) == {"an12760_sample", "an12760_be16", "adxrs_rate", "adxrs_rate_smooth", "crossaxis",
+                           "crossaxis_law"}
     for name, (b, ok) in probes.items():
         assert b == 0 and ok, (name, b, ok, out)

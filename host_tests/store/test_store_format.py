@@ -163,7 +163,7 @@ def test_storetool_cli(tmp_path, capsys):
     assert storetool.main(["bin2json", nvm, "--nvm", "-o", str(tmp_path / "n.json")]) == 0
     bad = tmp_path / "bad.bin"
     bad.write_bytes(b"print('hello')\n" * 3)
-    assert storetool.main(["dump", str(bad)]) == 1
+    assert storetool.main(["dump", str(bad)]) == 2
     assert "not a tempcomp store" in capsys.readouterr().err
 
 

@@ -27,7 +27,7 @@ Coefficient record (``tempcomp.record`` kind KIND_AN12760), values in order:
 """
 
 from tempcomp import record
-from tempcomp.fixedpoint import CLAMP, Compensator, shift_basis
+from tempcomp.fixedpoint import CLAMP, Compensator, code_span, shift_basis
 
 _PER_AXIS = 8
 
@@ -121,10 +121,10 @@ class AN12760:
             # re-expanded about the nearest integer code: the core takes an integer t_ref
             offs.append(_trim(shift_basis(o, code_room, ref)))
             scs.append(_trim(shift_basis(s, code_room, ref)))
-        t_cal = _code_span(lo_c, hi_c, self.t_offset, t_scale)
+        t_cal = code_span(lo_c, hi_c, self.t_offset, t_scale)
         t_in = None
         if t_in_c is not None:
-            t_in = _code_span(float(t_in_c[0]), float(t_in_c[1]), self.t_offset, t_scale)
+            t_in = code_span(float(t_in_c[0]), float(t_in_c[1]), self.t_offset, t_scale)
         self.comp = Compensator(
             offs, scs, t_cal, t_in=t_in, out_scale=out_per_g, raw_range=raw_range,
             policy=policy, t_ref=ref,
@@ -183,17 +183,3 @@ def _trim(c):
     while len(c) > 1 and c[-1] == 0.0:
         c.pop()
     return c
-
-
-def _code_span(lo_c, hi_c, t_offset, t_scale):
-    a = (lo_c - t_offset) / t_scale
-    b = (hi_c - t_offset) / t_scale
-    if a > b:
-        a, b = b, a
-    lo = int(a)
-    if lo > a:
-        lo -= 1
-    hi = int(b)
-    if hi < b:
-        hi += 1
-    return (lo, hi)

@@ -62,6 +62,8 @@ _S_MAX = const(24)
 _MAX_DEGREE = const(3)
 _SPAN_LIMIT = const(65535)  # t and raw ranges: half-span <= 2**15 keeps |x| limbs in bound
 _SCALE_RATIO = const(2)  # scale may vary at most 2x over the input range
+_EXT = const(14)  # extra fraction bits of eval_ext(): the scale's rounding, 2**-27 -> 2**-41
+_EXT_MASK = const(0x3FFF)
 
 
 def mul_shift(a, x, h):
@@ -137,6 +139,21 @@ def shift_basis(coeffs, old_ref, new_ref):
     return out
 
 
+def code_span(lo_c, hi_c, t_offset, t_scale):
+    """(lo, hi) integer temperature codes covering lo_c..hi_c degC, T = code * t_scale + t_offset (set-up)."""
+    a = (lo_c - t_offset) / t_scale
+    b = (hi_c - t_offset) / t_scale
+    if a > b:
+        a, b = b, a
+    lo = int(a)
+    if lo > a:
+        lo -= 1
+    hi = int(b)
+    if hi < b:
+        hi += 1
+    return (lo, hi)
+
+
 def poly_value(coeffs, u):
     """Float value of sum coeffs[k] * u**k (set-up and checks; allocates)."""
     v = 0.0
@@ -209,12 +226,28 @@ class Poly:
         n = [b[j] * _pow2(h * j) for j in range(len(b))]
         while len(n) > 1 and n[-1] == 0:
             n.pop()
+        # |x| <= rho = half / 2**h (between 1/2 and 1): Horner's partial sums
+        # P_k = sum_{j>=k} n_j x**(j-k) (k >= 1, each fed to mul_shift) and the variable part
+        # V = sum_{j>=1} n_j x**j are bounded by their sums of |n_j| rho**(j-k), not of |n_j|:
+        # up to 3 more fraction bits than the plain sum for a cubic over a span just past 2**h
+        rho = half / _pow2(h)
+        deg = len(n) - 1
+        vb = 0.0
+        for k in range(1, deg + 1):
+            pk = 0.0
+            for j in range(deg, k - 1, -1):
+                pk = pk * rho + abs(n[j])
+            vb = max(vb, pk)
+        vsum = 0.0
+        for j in range(deg, 0, -1):
+            vsum = (vsum + abs(n[j])) * rho
+        vb = max(vb, vsum)
         budget = _pow2(limit) * (1.0 - 1.0 / 1024)  # room for coefficient rounding
-        frac = _fit_frac(sum(abs(v) for v in n), budget, max_frac)
+        frac = _fit_frac(abs(n[0]) + vsum, budget, max_frac)
         # The temperature-dependent part is small next to the constant (a few % of drift), so
         # it gets its own, finer scale: Horner's few units of rounding then land below one
         # unit of the result instead of adding up in it.
-        vfrac = _fit_frac(sum(abs(v) for v in n[1:]), budget, frac + 24)
+        vfrac = _fit_frac(vb, budget, frac + 24)
         if vfrac < frac:
             vfrac = frac  # (cannot happen: the variable part is no larger than the whole)
         self.frac = frac
@@ -222,10 +255,22 @@ class Poly:
         self._mid = mid
         self._h = h
         self._a0 = int(round(n[0] * _pow2(frac)))
+        # the constant again with _EXT more bits, as a0h + a0l / 2**_EXT (0 <= a0l < 2**_EXT),
+        # for eval_ext(); two small ints, no long int even where there are none
+        f0 = n[0] * _pow2(frac)
+        a0h = int(f0 // 1.0)
+        a0l = int(round((f0 - a0h) * _pow2(_EXT)))
+        if a0l >= (1 << _EXT):
+            a0h += 1
+            a0l -= 1 << _EXT
+        self._a0h = a0h
+        self._a0l = a0l
         self._a = (0,) + tuple(int(round(v * _pow2(vfrac))) for v in n[1:])
-        self._deg = len(n) - 1
+        self._deg = deg
         self._vs = vfrac - frac
         self._vr = (1 << (vfrac - frac - 1)) if vfrac > frac else 0
+        self._vm = (1 << (vfrac - frac)) - 1
+        self.ext = 0
         self._coeffs_mid = b  # float coefficients of (t - mid), for set-up checks
 
     def eval(self, t):
@@ -242,6 +287,31 @@ class Poly:
             acc = a[i] + mul_shift(acc, x, h)
         # |variable part| <= sum|a[1:]| <= 2**limit; shifted down to frac and rounded
         return self._a0 + ((mul_shift(acc, x, h) + self._vr) >> self._vs)
+
+    def eval_ext(self, t):
+        """eval(t) with _EXT more bits: returns D and sets self.ext = R, where
+        p(t) * 2**frac ~ D + R / 2**_EXT, 0 <= R < 2**_EXT. Zero allocation."""
+        i = self._deg
+        if i == 0:
+            self.ext = self._a0l
+            return self._a0h
+        a = self._a
+        acc = a[i]
+        x = t - self._mid
+        h = self._h
+        while i > 1:
+            i -= 1
+            acc = a[i] + mul_shift(acc, x, h)
+        v = mul_shift(acc, x, h)  # |v| <= 2**limit, in units of 2**-(frac + vs)
+        vs = self._vs
+        lo = v & self._vm  # 0 <= lo < 2**vs
+        if vs >= _EXT:
+            lo >>= vs - _EXT
+        else:
+            lo <<= _EXT - vs  # < 2**_EXT
+        lo += self._a0l  # < 2**(_EXT + 1)
+        self.ext = lo & _EXT_MASK
+        return self._a0h + (v >> vs) + (lo >> _EXT)
 
     def extrema(self):
         """(min, max) of the float polynomial over t_range (set-up use)."""
@@ -324,6 +394,10 @@ class Compensator:
         K = 1
         while (1 << K) < max(r_hi - mid, mid - r_lo):
             K += 1
+        if mid == 0:
+            # apply_be16 decodes whole int16 words, and a word outside a narrower signed range
+            # (a 14-bit part's +-8192, a glitch) must stay in bound too: |r| <= 2**15 = 2**K
+            K = 15
         self._mid = mid
         self._k = K
         self._kmask = (1 << K) - 1
@@ -379,11 +453,28 @@ class Compensator:
         self.clamped = 0
         self._t = None
         # the unrolled 3-axis burst path needs signed int16 raw codes (raw range middle 0)
-        self._p3 = [0] * 11 if (n == 3 and mid == 0) else None
+        self._p3 = None
+        self._nk = None
+        if n == 3 and mid == 0:
+            nk = _kernels() if _native is not False else None
+            if nk is not None:
+                # native kernels read the 11 numbers (and the batch's stride and output tag)
+                # from a 32-bit array; the pure path unpacks a list faster
+                self._p3 = nk.params()
+                self._nk = nk.kernels(self._p3, self._check_n)
+            else:
+                self._p3 = [0] * 11
         self.update(self._t_lo)
-        if self._p3 is not None:
-            # bound once here: calling a stored bound method allocates nothing
+        if mid != 0:
+            # a signed word minus a middle far from 0 may leave |r| <= 2**15
+            self.apply_be16 = self._be16_refused  # type: ignore[assignment]
+            self.apply_be16_n = self._be16_refused
+        elif self._nk is not None:
+            # closures over the parameter array: calling them allocates nothing
+            self.apply_be16, self.apply_be16_n = self._nk
+        elif self._p3 is not None:
             self.apply_be16 = self._be16_3
+            self.apply_be16_n = self._be16_3n
 
     def _set_offset(self, k, coeffs, t_range, t_ref, what):
         # Offset polynomial k in fixed point and its exponent in update()'s division
@@ -411,13 +502,24 @@ class Compensator:
             return
         self._t = t
         for k in range(self.axes):
-            d = self._sc[k].eval(t)
-            g = (_gain_num(self._eg[k], d) + 1) >> 1
+            sp = self._sc[k]
+            d = sp.eval_ext(t)
+            e = sp.ext
+            # the scale is d + e / 2**14: 2**e/(d + e') = q * (1 - e'/d + ...) with q = 2**e/d,
+            # so the quotients below drop q * e / (2**14 * d) (at most 2**29 * 2**14 / 2**14 /
+            # 2**24 = 32 units; the second-order term is below 2**-18 units)
+            g = _gain_num(self._eg[k], d)  # < 2**29
+            if e:
+                g -= mul_shift(g, e, _EXT) // d  # mul_shift: 2**29 * 2**14 / 2**14 < 2**30
+            g = (g + 1) >> 1
             self._gh[k] = g >> self._k
             self._gl[k] = g & self._kmask
             # floor, not round: apply()'s floor of r*gl/2**15 errs the other way, so the two
             # truncations partly cancel
-            self._b[k] = div_pow2(self._off[k].eval(t), self._eo[k], d)
+            b = div_pow2(self._off[k].eval(t), self._eo[k], d)  # |b| <= 2**29
+            if e:
+                b -= mul_shift(b, e, _EXT) // d
+            self._b[k] = b
         p = self._p3
         if p is not None:
             j = 0
@@ -455,6 +557,63 @@ class Compensator:
             i += 1
             j += 2
 
+    def _be16_refused(self, buf, out, n=1, stride=6):
+        raise ValueError(
+            "apply_be16 decodes signed int16 words; raw_range %r is not centred on 0: use apply()"
+            % (self.raw_range,)
+        )
+
+    def _check_n(self, buf, out, n, stride):
+        # checked before any word is read: the native kernels index the buffers unchecked
+        if n < 0 or stride < 2 * self.axes:
+            raise ValueError("apply_be16_n: need n >= 0 and stride >= %d, got n=%r stride=%r" % (2 * self.axes, n, stride))
+        if n and (n - 1) * stride + 2 * self.axes > len(buf):
+            raise ValueError("apply_be16_n: %d samples at stride %d need %d bytes, buf has %d" % (n, stride, (n - 1) * stride + 2 * self.axes, len(buf)))
+        if self.axes * n > len(out):
+            raise ValueError("apply_be16_n: %d samples need %d outputs, out has %d" % (n, self.axes * n, len(out)))
+
+    def apply_be16_n(self, buf, out, n, stride=6):
+        """Compensate n bursts (sample i's words at buf[i*stride:]) into out[axes*i + axis].
+
+        The same numbers as n calls of apply_be16 on buf[i*stride:]; zero allocation.
+        """
+        self._check_n(buf, out, n, stride)
+        gh = self._gh
+        gl = self._gl
+        b = self._b
+        s = self._s
+        half = self._half
+        k = self._k
+        na = self.axes
+        m = na * n
+        i = 0
+        j = 0
+        while i < m:
+            a = 0
+            while a < na:
+                v = ((buf[j + 2 * a] << 8 | buf[j + 2 * a + 1]) ^ 0x8000) - 0x8000
+                out[i + a] = (v * gh[a] + ((v * gl[a]) >> k) - b[a] + half) >> s
+                a += 1
+            i += na
+            j += stride
+
+    def _be16_3n(self, buf, out, n, stride=6):
+        # apply_be16_n for the unrolled 3-axis case: _be16_3's arithmetic (and bound) per sample
+        self._check_n(buf, out, n, stride)
+        g0, l0, b0, g1, l1, b1, g2, l2, b2, k, s = self._p3  # type: ignore[misc]  # set when bound
+        i = 0
+        j = 0
+        m = 3 * n
+        while i < m:
+            v = ((buf[j] << 8 | buf[j + 1]) ^ 0x8000) - 0x8000
+            out[i] = (v * g0 + ((v * l0) >> k) - b0) >> s
+            v = ((buf[j + 2] << 8 | buf[j + 3]) ^ 0x8000) - 0x8000
+            out[i + 1] = (v * g1 + ((v * l1) >> k) - b1) >> s
+            v = ((buf[j + 4] << 8 | buf[j + 5]) ^ 0x8000) - 0x8000
+            out[i + 2] = (v * g2 + ((v * l2) >> k) - b2) >> s
+            i += 3
+            j += stride
+
     def _be16_3(self, buf, out):
         # The common 3-axis int16 burst, unrolled, with every per-axis number in one flat list
         # unpacked onto the stack (no allocation) and the rounding half folded into the offset
@@ -484,6 +643,41 @@ class Compensator:
         t = self._t
         self._t = None
         self.update(t)
+
+
+_native = None  # None: native kernels where the interpreter has them; True/False: forced
+_nmod = None  # the kernel module once imported
+_ntried = False
+
+
+def _kernels():
+    # imported on first use, so boot RAM holds no native code until a 3-axis path is built
+    global _nmod, _ntried
+    if not _ntried:
+        _ntried = True
+        try:
+            from tempcomp import native
+
+            _nmod = native
+        except (ImportError, SyntaxError, ValueError, NotImplementedError):
+            # CPython (no micropython module), a port without the viper emitter, or a .mpy
+            # compiled for another architecture
+            pass
+    return _nmod
+
+
+def use_native(on=None):
+    """Choose the 3-axis int16 kernels of Compensators built from now on.
+
+    None (default): native (viper) where the interpreter has the emitter, else pure Python;
+    True: native or ValueError; False: pure Python. Returns True when native will be used.
+    Both give bit-identical results.
+    """
+    global _native
+    if on and _kernels() is None:
+        raise ValueError("use_native(True): this interpreter has no @micropython.viper emitter")
+    _native = None if on is None else bool(on)
+    return _native is not False and _kernels() is not None
 
 
 def _gain_num(e, d):

@@ -41,8 +41,6 @@ just before each capture (a robot arm, or the virtual board's ``vboard_sensors.w
 import time
 
 from tempcomp import sensors as _sensors
-from tempcomp.mpu6xxx_tc import BiasModel, merge_points
-from tempcomp.store import Store
 
 
 def _now_ms():
@@ -425,6 +423,10 @@ class Session:
         return r
 
     def _apply_and_save(self):
+        # loaded here, at the end: the session's heap during the captures stays small (docs/ram.md)
+        from tempcomp.mpu6xxx_tc import BiasModel, merge_points
+        from tempcomp.store import Store
+
         s = self.s
         r = self.result
         st = Store(self.store_path)

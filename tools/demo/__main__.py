@@ -241,7 +241,8 @@ def gap_diagnosis():
         say("could not convert the logs in %s, skipping the diagnosis:\n%s" % (d, conv.stderr.strip()[-2000:]))
         return None
     cmd = [py, "-m", "tools.simgap", train, "--withheld", os.path.join(real, "tofupilot_gyro_withheld.csv"),
-           "--json", os.path.join(real, "tofupilot_gyro.json"), "--plot", os.path.join(real, "tofupilot_gyro.png")]
+           "--json", os.path.join(real, "tofupilot_gyro.json"), "--plot", os.path.join(real, "tofupilot_gyro.png"),
+           "--export", os.path.join(real, "tofupilot_gyro_model.json")]
     say("+ python -m tools.simgap %s" % " ".join(os.path.relpath(a, REPO) if a.startswith(REPO) else a for a in cmd[3:]))
     r = subprocess.run(cmd, cwd=REPO, capture_output=True, text=True)
     say(r.stdout.rstrip())
@@ -382,7 +383,18 @@ def main(argv=None):
         done.append("diagnosed a real IMU log: the temperature model misses %s (%s)" % (
             ", ".join(verdict) or "nothing above the noise floor", os.path.relpath(gap_png, REPO)))
 
-    header(9, "summary")
+    header(9, "the diagnosis on the board: export, store, restore, before/after on the withheld part")
+    if gap_png:
+        from tools.demo import augment
+        try:
+            line = augment.run(say, os.path.dirname(gap_png))
+        except BoardError as e:
+            line = None
+            say("the board step failed: %s" % e)
+        if line:
+            done.append(line)
+
+    header(10, "summary")
     for line in done:
         say(" - " + line)
     say("took %.0f s; plot: %s" % (time.time() - t_start, os.path.relpath(png, REPO)))

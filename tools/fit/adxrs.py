@@ -10,7 +10,9 @@ least-squares quadratics (more than three).
 
 import numpy as np
 
-from tools.fit.common import FitError, check_temperatures, group_temperatures, numeric, read_csv
+from tools.fit.common import FitError, check_temperatures, group_temperatures
+
+MIN_SCALE = 0.01  # mV per dps
 
 
 def points_from_rows(temp_c, vt_mv, rate_dps, out_mv, lines=None, temp_tol=1.0):
@@ -35,7 +37,20 @@ def points_from_rows(temp_c, vt_mv, rate_dps, out_mv, lines=None, temp_tol=1.0):
         A = np.stack([np.ones(m.sum()), r], axis=1)
         (v0, s), *_ = np.linalg.lstsq(A, out_mv[m], rcond=None)
         res = out_mv[m] - A @ np.array([v0, s])
-        pts.append((float(c), float(vt_mv[m].mean()), float(v0), float(s), float(np.sqrt(np.mean(res ** 2)))))
+        rms = float(np.sqrt(np.mean(res ** 2)))
+        swing = abs(s) * float(rs[-1] - rs[0])
+        # the slowest ADXRS (ADXRS649, +-20000 dps) still gives 0.1 mV/dps
+        if abs(s) < MIN_SCALE or swing <= 3.0 * rms:
+            raise FitError(
+                "stuck rate output: at %.2f degC the output moves %.3g mV over %g..%g dps (scale %.3g mV/dps, "
+                "noise %.3g mV rms); a rate output that does not follow the rate cannot be calibrated: "
+                "check the wiring and the rate column" % (c, swing, rs[0], rs[-1], s, rms))
+        pts.append((float(c), float(vt_mv[m].mean()), float(v0), float(s), rms))
+    signs = {p[3] > 0 for p in pts}
+    if len(signs) > 1:
+        raise FitError("the scale factor changes sign between temperatures (%s mV/dps at %s degC): "
+                       "check the rate column's sign" % (", ".join("%.3g" % p[3] for p in pts),
+                                                         ", ".join("%.1f" % p[0] for p in pts)))
     vts = [p[1] for p in pts]
     if np.any(np.diff(vts) <= 0):
         raise FitError("the temperature output VT does not rise with temperature (%s mV at %s degC): "
@@ -94,10 +109,18 @@ def fit_rows(temp_c, vt_mv, rate_dps, out_mv, lines=None, temp_tol=1.0):
     return fit_points(pts, w)
 
 
+COLUMNS = ("temp_c", "vt_mv", "rate_dps", "out_mv")
+
+
 def fit_csv(path, temp_tol=1.0):
-    cols = read_csv(path, ["temp_c", "vt_mv", "rate_dps", "out_mv"])
-    arrs = [numeric(cols, c, path) for c in ("temp_c", "vt_mv", "rate_dps", "out_mv")]
-    return fit_rows(*arrs, lines=cols["_line"], temp_tol=temp_tol)
+    from tools.fit.fastcsv import read_table
+
+    return fit_table(read_table(path, COLUMNS), temp_tol)
+
+
+def fit_table(cols, temp_tol=1.0):
+    """Fit from columns (as tools.fit.fastcsv.read_table returns)."""
+    return fit_rows(*(cols[c] for c in COLUMNS), lines=cols["_line"], temp_tol=temp_tol)
 
 
 def record_ints(res):

@@ -1,9 +1,11 @@
 """Chamber data of simulated accelerometers (numpy, host): truth and raw samples for tests/bench.
 
 Each unit has, per axis a, offset(T) = off0 + tco1 dT + tco2 dT^2 (mg), scale(T) =
-cpg (1 + sen_tol)(1 + tcs1 dT) counts per g, and a fixed cross-axis matrix
-N = S + R (S symmetric off-diagonal cross-axis sensitivity, R a small rotation).
-raw = round(offset*cpg/1000 + diag(scale) (I + N) g + noise), int16.
+cpg (1 + sen_tol)(1 + tcs1 dT) counts per g, and a cross-axis matrix
+N(T) = S + R + N1 dT (S symmetric off-diagonal cross-axis sensitivity, R a small rotation,
+N1 the symmetric cross-axis drift per degC: 0 unless ``cross_tc`` is given; MEMS datasheets bound
+the cross-axis sensitivity, +-2 % on the MPU-6050/6500, not its drift).
+raw = round(offset*cpg/1000 + diag(scale) (I + N(T)) g + noise), int16.
 """
 
 import numpy as np
@@ -11,8 +13,12 @@ import numpy as np
 SIX = np.array([[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]], dtype=float)
 
 
-def truth(units, rng, cross=0.01, rot=0.01):
-    """Random per-unit true coefficients (dict of arrays, leading axis = unit)."""
+def truth(units, rng, cross=0.01, rot=0.01, cross_tc=0.0):
+    """Random per-unit true coefficients (dict of arrays, leading axis = unit).
+
+    cross_tc: standard deviation of the cross-axis drift N1 (per degC); 0 keeps N constant
+    and draws nothing extra from rng, so existing seeds give the same units.
+    """
     U = units
     S = rng.normal(0, cross, (U, 3, 3))
     S = np.triu(S, 1)
@@ -22,6 +28,10 @@ def truth(units, rng, cross=0.01, rot=0.01):
     R[:, 2, 1], R[:, 1, 2] = w[:, 0], -w[:, 0]
     R[:, 0, 2], R[:, 2, 0] = w[:, 1], -w[:, 1]
     R[:, 1, 0], R[:, 0, 1] = w[:, 2], -w[:, 2]
+    N1 = np.zeros((U, 3, 3))
+    if cross_tc:
+        D = np.triu(rng.normal(0, cross_tc, (U, 3, 3)), 1)
+        N1 = D + np.swapaxes(D, 1, 2)
     return {
         "off0": rng.normal(0, 40, (U, 3)),
         "tco1": rng.normal(0, 0.5, (U, 3)),
@@ -30,6 +40,7 @@ def truth(units, rng, cross=0.01, rot=0.01):
         "tcs1": rng.normal(0, 2e-4, (U, 3)),
         "N": S + R,
         "rot": w,
+        "N1": N1,
     }
 
 
@@ -40,10 +51,54 @@ def chamber(tr, temps, g_dirs, samples, cpg, rng, noise_counts=8.0, t_room=25.0,
     off = (tr["off0"][:, None, :] + tr["tco1"][:, None, :] * dT[None, :, None]
            + tr["tco2"][:, None, :] * dT[None, :, None] ** 2) * cpg / 1000.0  # (U,T,3) counts
     sc = cpg * (1 + tr["sen_tol"][:, None, :]) * (1 + tr["tcs1"][:, None, :] * dT[None, :, None])  # (U,T,3)
-    M = sc[:, :, :, None] * (np.eye(3) + tr["N"])[:, None, :, :]  # (U,T,3,3)
+    N = tr["N"][:, None, :, :] + tr.get("N1", np.zeros_like(tr["N"]))[:, None, :, :] * dT[None, :, None, None]
+    M = sc[:, :, :, None] * (np.eye(3) + N)  # (U,T,3,3)
     clean = off[:, :, None, :] + np.einsum("utaj,oj->utoa", M, g_dirs)  # (U,T,O,3)
     noise = rng.normal(0, noise_counts, (U, len(dT), len(g_dirs), samples, 3))
     return np.rint(clean[:, :, :, None, :] + noise).astype(dtype)
+
+
+def fleet_files(out, units, rng, samples=20, cpg=16384.0, temps=(-40.0, 25.0, 85.0), one_csv=False,
+                outliers=()):
+    """Write a fleet of simulated six-position units: one CSV per unit in directory ``out``
+    (unit-00000.csv...) or, with one_csv, one CSV with a ``unit`` column. Units listed in
+    ``outliers`` get a 40x noisier chamber (a loose fixture). Returns the truth dict."""
+    import os
+
+    tr = truth(units, rng)
+    labels = ["+x", "-x", "+y", "-y", "+z", "-z"]
+    temps = np.asarray(temps, dtype=float)
+    bad = set(outliers)
+    chunk = 500
+    if one_csv:
+        f = open(out, "w")
+        f.write("unit,temp_c,orient,ax,ay,az\n")
+    else:
+        os.makedirs(out, exist_ok=True)
+    # the row prefix of each (temperature, orientation) block; samples follow as integers
+    pre = ["%g,%s," % (t, lab) for t in temps for lab in labels]
+    for start in range(0, units, chunk):
+        n = min(chunk, units - start)
+        sub = {k: v[start:start + n] for k, v in tr.items()}
+        raw = chamber(sub, temps, SIX, samples, cpg, rng)
+        for i in range(n):
+            u = start + i
+            r = raw[i]
+            if u in bad:
+                noisy = chamber({k: v[u:u + 1] for k, v in tr.items()}, temps, SIX, samples, cpg, rng,
+                                noise_counts=320.0)
+                r = noisy[0]
+            r = r.reshape(len(pre), samples, 3)
+            name = "unit-%05d" % u
+            body = "".join(pre[b] + "%d,%d,%d\n" % tuple(s) for b in range(len(pre)) for s in r[b].tolist())
+            if one_csv:
+                f.write("".join(name + "," + line + "\n" for line in body.splitlines()))
+            else:
+                with open(os.path.join(out, name + ".csv"), "w") as g:
+                    g.write("temp_c,orient,ax,ay,az\n" + body)
+    if one_csv:
+        f.close()
+    return tr
 
 
 def _main(argv=None):
@@ -54,18 +109,26 @@ def _main(argv=None):
     import sys
 
     p = argparse.ArgumentParser(prog="python -m tools.fit.simulate", description=_main.__doc__)
-    p.add_argument("kind", choices=["sixpos", "adxrs"])
-    p.add_argument("out", help="CSV file to write")
+    p.add_argument("kind", choices=["sixpos", "adxrs", "sixpos-fleet"])
+    p.add_argument("out", help="CSV file to write (sixpos-fleet: a directory, one CSV per unit)")
+    p.add_argument("--units", type=int, default=100, help="sixpos-fleet: how many units")
+    p.add_argument("--one-csv", action="store_true", help="sixpos-fleet: one CSV with a unit column")
     p.add_argument("--seed", type=int, default=1)
     p.add_argument("--counts-per-g", type=float, default=16384.0)
     p.add_argument("--samples", type=int, default=20)
+    p.add_argument("--cross-tc", type=float, default=0.0,
+                   help="sixpos: cross-axis drift, standard deviation per degC (e.g. 1e-4); default 0")
+    p.add_argument("--temps", default="-40,25,85", help="chamber temperatures, degC, comma separated")
     a = p.parse_args(argv)
     rng = np.random.default_rng(a.seed)
-    temps = [-40.0, 25.0, 85.0]
+    temps = [float(t) for t in a.temps.split(",")]
+    if a.kind == "sixpos-fleet":
+        fleet_files(a.out, a.units, rng, a.samples, a.counts_per_g, temps, one_csv=a.one_csv)
+        return 0
     with open(a.out, "w", newline="") as f:
         w = csv.writer(f)
         if a.kind == "sixpos":
-            raw = chamber(truth(1, rng), temps, SIX, a.samples, a.counts_per_g, rng)
+            raw = chamber(truth(1, rng, cross_tc=a.cross_tc), temps, SIX, a.samples, a.counts_per_g, rng)
             labels = ["+x", "-x", "+y", "-y", "+z", "-z"]
             w.writerow(["temp_c", "orient", "ax", "ay", "az"])
             for k, t in enumerate(temps):

@@ -10,7 +10,9 @@ cross-axis sensitivity (non-orthogonality); its antisymmetric part is a small ro
 (misalignment between the sensor and the fixture). With six or more known orientations this
 is linear least squares with one design shared by every unit (one pseudo-inverse for
 10,000 units). With 9..12 *unknown* orientations (``ellipsoid=True``) |M^-1 (raw - b)| = 1 g
-is fitted as a quadric; M is then the symmetric one, so misalignment is not observable.
+is fitted as a quadric; M is then the symmetric one, so misalignment is not observable. How well
+the orientations cover the sphere is checked from the directions found (``check_coverage``):
+the fit warns, or refuses, naming face/edge/corner attitudes to add.
 
 Each coefficient's temperature dependence is a polynomial in T - t_room (order <= number of
 temperatures - 1), fitted per unit. The device applies the per-axis part as AN12760 (offset,
@@ -19,7 +21,7 @@ TCO, SENtol, TCS) and the cross-axis part as ``tempcomp.crossaxis``.
 
 import numpy as np
 
-from tools.fit.common import FitError, check_temperatures, group_temperatures, numeric, read_csv
+from tools.fit.common import FitError, check_temperatures, group_temperatures
 
 # +x: the sensor's +x axis points up and reads +1 g
 LABELS = {
@@ -94,7 +96,8 @@ def fit_means(mean, temps, counts_per_g, g_dirs=None, se=None, order=1, t_room=2
     x = mean / cpg  # in g, keeps every matrix near unit size
     se_x = se / cpg if se is not None else None
     if ellipsoid:
-        b, M, res = _ellipsoid(x)
+        b, M, res, dirs = _ellipsoid(x)
+        warnings = warnings + check_coverage(dirs, temps)
         dof = NO - 9
         misalign = None
         se_b = se_M = None
@@ -166,7 +169,35 @@ def fit_means(mean, temps, counts_per_g, g_dirs=None, se=None, order=1, t_room=2
     for c, (i, j) in enumerate(_OFFDIAG):
         n_room[:, i, j] = law_cross[:, 0, c]
     out["cross_correction"] = np.linalg.inv(np.eye(3) + n_room) - np.eye(3)
+    out["cross_correction_law"] = _correction_law(law_cross, temps, t_room)
     return out, warnings
+
+
+def _correction_law(law_cross, temps, t_room):
+    """E(T) = (I + N(T))^-1 - I as a polynomial in T - t_room, (U, e+1, 3, 3), e = min(2 d, 3).
+
+    N(T) is the fitted cross-axis law of degree d; E = -N + N^2 - N^3 ... is not a polynomial,
+    so E's law is the least-squares polynomial through E on a fine grid over each unit's span.
+    Its degree holds N^2 exactly (a linear N gives a quadratic E: a 3e-4/degC drift makes
+    N1^2 dT^2 = 4e-4 at 65 degC, 0.4 mg at 1 g, if the law kept degree 1); what is left is of
+    order |N(T) - N(t_room)|^3, 1e-5 for that drift (0.01 mg at 1 g).
+    """
+    U, D, _ = law_cross.shape
+    DE = min(2 * (D - 1), 3) + 1
+    grid = np.linspace(0.0, 1.0, 4 * DE + 1)
+    dT = temps.min(axis=1)[:, None] + (temps.max(axis=1) - temps.min(axis=1))[:, None] * grid - t_room  # (U, G)
+    V = np.power(dT[:, :, None], np.arange(D))  # (U, G, D)
+    n = np.zeros((U, len(grid), 3, 3))
+    for c, (i, j) in enumerate(_OFFDIAG):
+        n[:, :, i, j] = np.einsum("ugk,uk->ug", V, law_cross[:, :, c])
+    E = np.linalg.inv(np.eye(3) + n) - np.eye(3)  # (U, G, 3, 3)
+    # scaled columns keep the normal equations well conditioned over +-65 degC
+    s = np.maximum(np.abs(dT).max(axis=1), 1.0)[:, None]
+    Vs = np.power((dT / s)[:, :, None], np.arange(DE))
+    Vt = np.swapaxes(Vs, 1, 2)
+    coef = np.linalg.solve(Vt @ Vs, Vt @ E.reshape(U, len(grid), 9))  # (U, DE, 9)
+    coef = coef / np.power(s, np.arange(DE))[:, :, None]
+    return coef.reshape(U, DE, 3, 3)
 
 
 def _ellipsoid(x):
@@ -202,15 +233,102 @@ def _ellipsoid(x):
     a = np.einsum("utab,utob->utoa", Minv, x - c[:, :, None, :])
     norm = np.linalg.norm(a, axis=-1, keepdims=True)
     res = a - a / norm  # radial misfit, in g
-    return c, M, res
+    return c, M, res, a / norm
+
+
+# Orientation coverage of the ellipsoid fit. Linearised about a sphere, a radial error e_o in
+# orientation o (unit gravity direction u_o in the sensor frame) moves the fit by
+# J^+ e with J's row o = [-u_o, u_x^2, u_y^2, u_z^2, 2 u_x u_y, 2 u_x u_z, 2 u_y u_z] (offset,
+# then the symmetric matrix); sqrt(diag((J^T J)^-1)) is how many times a reading's noise (or
+# rounding) reaches each coefficient. Evenly spread orientations give 0.5 (offsets) and 0.71
+# (scales) with 12 of them. Random ones that crowd one hemisphere reach 3..30: in 300 random
+# sets of 12, every set above 2.6 missed the test's bounds at 3 counts of noise, none at or
+# below it did (host_tests/fit/test_sixpos.py).
+COVERAGE_WARN = 2.0  # about 3x evenly spread: still usable, say which orientations to add
+COVERAGE_REFUSE = 6.0  # errors 8x or more those of a good set: refuse
+_COEFF = ["x offset", "y offset", "z offset", "x scale", "y scale", "z scale", "xy cross-axis term",
+          "xz cross-axis term", "yz cross-axis term"]
+
+
+def _design(u):
+    x, y, z = u[..., 0], u[..., 1], u[..., 2]
+    return np.stack([-x, -y, -z, x * x, y * y, z * z, 2 * x * y, 2 * x * z, 2 * y * z], axis=-1)
+
+
+def amplification(u):
+    """Noise amplification of each ellipsoid coefficient, (..., 9), for unit directions u (..., O, 3)."""
+    J = _design(np.asarray(u, dtype=np.float64))
+    JtJ = np.swapaxes(J, -1, -2) @ J
+    out = np.full(JtJ.shape[:-1], np.inf)
+    ok = np.linalg.matrix_rank(JtJ) == 9
+    if ok.any():
+        out[ok] = np.sqrt(np.clip(np.einsum("...ii->...i", np.linalg.inv(JtJ[ok])), 0.0, None))
+    return out
+
+
+def _candidates():
+    # faces, edges (45 deg between two faces) and corners: the attitudes a box or a jig gives
+    out = []
+    for v in np.array(np.meshgrid([-1, 0, 1], [-1, 0, 1], [-1, 0, 1], indexing="ij")).reshape(3, -1).T:
+        if v.any():
+            lab = "".join(("+" if c > 0 else "-") + "xyz"[i] for i, c in enumerate(v) if c)
+            out.append((lab, v / np.linalg.norm(v)))
+    return out
+
+
+def orientations_to_add(u, target=COVERAGE_WARN, most=6):
+    """Labels of face/edge/corner attitudes that bring the worst amplification to <= target (greedy)."""
+    u = np.asarray(u, dtype=np.float64)
+    cands = _candidates()
+    added = []
+    while amplification(u).max() > target and len(added) < most:
+        best = min(cands, key=lambda c: amplification(np.vstack([u, c[1]])).max())
+        added.append(best[0])
+        u = np.vstack([u, best[1]])
+    return added
+
+
+def check_coverage(dirs, temps):
+    """Warnings (and FitError) for orientation sets that cover the sphere poorly; dirs (U, T, O, 3)."""
+    amp = amplification(dirs)  # (U, T, 9)
+    worst = amp.max(axis=-1)
+    u, t = (int(i) for i in np.unravel_index(np.argmax(worst), worst.shape))
+    w = float(worst[u, t])
+    if w <= COVERAGE_WARN:
+        return []
+    coeff = _COEFF[int(np.argmax(amp[u, t]))]
+    add = orientations_to_add(dirs[u, t])
+    what = ("add orientations with %s up (a label names the axes pointing up together: +x-y is +x and -y "
+            "up at 45 deg)" % ", ".join(add)) if add else "add orientations on the side of the sphere the data lacks"
+    n_bad = int((worst > COVERAGE_WARN).sum())
+    msg = ("orientation coverage: unit %d at %.1f degC (%d unit-temperature(s) in all): the orientations crowd "
+           "one side of the sphere, so a reading's noise reaches the %s %.1f times (evenly spread: 0.5..0.7); %s"
+           % (u, temps[u, t], n_bad, coeff, w, what))
+    if w > COVERAGE_REFUSE or not np.isfinite(w):
+        raise FitError("ellipsoid fit refused: " + msg)
+    return [msg]
 
 
 def fit_csv(path, counts_per_g, order=1, t_room=25.0, ellipsoid=False, raw_range=(-32768, 32767), temp_tol=1.0):
     """One unit from a CSV ``temp_c,orient,ax,ay,az`` (optional gx,gy,gz); a result dict for JSON."""
-    cols = read_csv(path, ["temp_c", "orient", "ax", "ay", "az"], optional=("gx", "gy", "gz"))
+    from tools.fit.fastcsv import read_table
+
+    cols = read_table(path, COLUMNS, optional=OPTIONAL, text_cols=("orient",))
+    return fit_table(cols, path, counts_per_g, order, t_room, ellipsoid, raw_range, temp_tol)
+
+
+COLUMNS = ("temp_c", "orient", "ax", "ay", "az")
+OPTIONAL = ("gx", "gy", "gz")
+
+
+def fit_table(cols, path, counts_per_g, order=1, t_room=25.0, ellipsoid=False, raw_range=(-32768, 32767),
+              temp_tol=1.0):
+    """One unit from columns (as tools.fit.fastcsv.read_table returns); path names it in errors."""
+    if not counts_per_g > 0:
+        raise FitError("counts per g must be positive, got %r" % (counts_per_g,))
     lines = cols["_line"]
-    T = numeric(cols, "temp_c", path)
-    raw = np.stack([numeric(cols, c, path) for c in ("ax", "ay", "az")], axis=1)
+    T = np.asarray(cols["temp_c"], dtype=float)
+    raw = np.stack([np.asarray(cols[c], dtype=float) for c in ("ax", "ay", "az")], axis=1)
     lo, hi = raw_range
     sat = (raw <= lo) | (raw >= hi)
     if sat.any():
@@ -218,9 +336,13 @@ def fit_csv(path, counts_per_g, order=1, t_room=25.0, ellipsoid=False, raw_range
         raise FitError("saturated axis: %s line %d axis %s reads %d, at the range limit %d..%d; use a wider "
                        "range or drop that orientation" % (path, lines[i], "xyz"[a], raw[i, a], lo, hi))
     labels = [s.strip() for s in cols["orient"]]
+    orients, first, inv = np.unique(np.array(labels, dtype=object).astype(str), return_index=True,
+                                    return_inverse=True)
+    orients = [str(o) for o in orients]
     have_g = all(c in cols for c in ("gx", "gy", "gz"))
     gvec = {}
-    for i, lab in enumerate(labels):
+    for j, lab in enumerate(orients):
+        i = int(first[j])
         if have_g:
             g = tuple(float(cols[c][i]) for c in ("gx", "gy", "gz"))
         elif ellipsoid:
@@ -230,27 +352,28 @@ def fit_csv(path, counts_per_g, order=1, t_room=25.0, ellipsoid=False, raw_range
         else:
             raise FitError("%s line %d: orientation %r is not one of %s (or give gx,gy,gz columns)"
                            % (path, lines[i], lab, " ".join(LABELS)))
-        gvec.setdefault(lab, g)
+        gvec[lab] = g
     centres, idx = group_temperatures(T, lines, temp_tol)
     if len(centres) < 2:
         raise FitError("only one temperature (%.2f degC): temperature laws need at least 2" % centres[0])
-    orients = sorted(gvec)
     NO = len(orients)
-    mean = np.empty((1, len(centres), NO, 3))
-    se = np.zeros((1, len(centres), NO, 3))
-    temps = np.empty(len(centres))
-    for k, c in enumerate(centres):
-        m = idx == k
-        temps[k] = T[m].mean()
-        for j, lab in enumerate(orients):
-            sel = m & np.array([lb == lab for lb in labels])
-            if not sel.any():
-                raise FitError("missing orientation: %.2f degC has no rows for orientation %r, which other "
-                               "temperatures have" % (c, lab))
-            r = raw[sel]
-            mean[0, k, j] = r.mean(axis=0)
-            if len(r) > 1:
-                se[0, k, j] = r.std(axis=0, ddof=1) / np.sqrt(len(r))
+    NT = len(centres)
+    cell = idx * NO + inv  # (temperature, orientation) of each row
+    count = np.bincount(cell, minlength=NT * NO)
+    if (count == 0).any():
+        k, j = divmod(int(np.argmin(count)), NO)
+        raise FitError("missing orientation: %.2f degC has no rows for orientation %r, which other "
+                       "temperatures have" % (centres[k], orients[j]))
+    s1 = np.stack([np.bincount(cell, raw[:, a], NT * NO) for a in range(3)], axis=1)
+    mean = (s1 / count[:, None]).reshape(1, NT, NO, 3)
+    se = np.zeros((1, NT, NO, 3))
+    multi = count > 1
+    if multi.any():
+        dev = raw - mean.reshape(NT * NO, 3)[cell]
+        ss = np.stack([np.bincount(cell, dev[:, a] ** 2, NT * NO) for a in range(3)], axis=1)
+        var = np.where(multi[:, None], ss / np.maximum(count - 1, 1)[:, None], 0.0)
+        se = np.sqrt(var / count[:, None]).reshape(1, NT, NO, 3)
+    temps = (np.bincount(idx, T, NT) / np.bincount(idx, minlength=NT))
     G = np.array([gvec[lab] for lab in orients], dtype=float)
     have_se = bool((se > 0).any())
     out, warnings = fit_means(mean, temps, counts_per_g, None if ellipsoid else G, se if have_se else None,
@@ -299,6 +422,11 @@ def summarise(out, u, counts_per_g, t_room, warnings, orients=None):
         "law_cross": {"terms": ["%s<-%s" % ("xyz"[i], "xyz"[j]) for i, j in _OFFDIAG],
                       "coeffs": f(out["law_cross"][u])},
         "cross_correction": f(out["cross_correction"][u]),
+        "cross_correction_law": {
+            "t_room_c": float(t_room),
+            "t_span_c": [float(temps.min()), float(temps.max())],
+            "coeffs": f(out["cross_correction_law"][u]),
+        },
         "misalignment_observable": out["misalign_rad"] is not None,
         "warnings": warnings,
     }
@@ -312,5 +440,20 @@ def record_ints(res):
     vals = [res["t_room_c"], t[0], t[-1], 3.0]
     for ax in res["axes"]:
         vals += [ax["offset_mg"]] + (ax["tco"] + [0.0] * 3)[:3] + [ax["sen_tol"]] + (ax["tcs"] + [0.0] * 3)[:3]
-    res["cross_record"] = record.pack(record.KIND_CROSS, [v for row in res["cross_correction"] for v in row])
+    res["cross_record"] = cross_axis(res).to_record()
     return record.pack(record.KIND_AN12760, vals)
+
+
+def cross_axis(res, **kw):
+    """The device's CrossAxis for a result dict: E(T) with its temperature law (kw: t_scale, t_offset).
+
+    A result without a law (law degree 0, or a JSON written before the law existed) gives the
+    constant matrix at t_room.
+    """
+    from tempcomp.crossaxis import CrossAxis
+
+    law = res.get("cross_correction_law")
+    if not law or len(law["coeffs"]) < 2:
+        return CrossAxis(res["cross_correction"])
+    return CrossAxis(law["coeffs"][0], law=law["coeffs"][1:], t_room=law["t_room_c"],
+                     t_span_c=law["t_span_c"], **kw)

@@ -16,6 +16,8 @@ What is modelled:
   ICM-20602 FIFO_EN bit 4 enables all gyro axes and the temperature is always included.
 * Samples from a true rate (dps) and acceleration (g), the temperature (deg C), a bias that
   may depend on temperature, seeded Gaussian noise, output rounding and int16 saturation.
+  Optionally (``set_cross``) an accelerometer cross-axis matrix that drifts linearly with
+  temperature, held within the datasheets' +-2 % cross-axis sensitivity.
 * Offset registers: gyro 0x13..0x18, signed, one register LSB moves the output by
   4 / 2**FS_SEL output LSB, 0 at power-on. Accel words (0x06.. stride 2 on the MPU-6050
   family, 0x77.. stride 3 on the MPU-6500 family): bits 15..1 an offset in 2048 LSB/g units
@@ -179,6 +181,7 @@ class MPU6xxxSim:
         self._turn = None  # (start ns, gravity at the start) while turn() is in effect
         self.byte_ns = 9 * 1000000000 // bus_hz
         self.stuck = set()
+        self.cross = None  # (N at 25 degC, its drift per degC), from set_cross()
         self.writes = 0  # register bytes written, for tests that count traffic
         self.oflow_events = 0
         self._noise = _normal_table(seed)
@@ -237,6 +240,26 @@ class MPU6xxxSim:
         if accel is not None:
             for k in range(3):
                 self.accel_bias[k][1], self.accel_bias[k][2] = accel[k]
+
+    def set_cross(self, n, tc=None):
+        """Accelerometer cross-axis sensitivity: output = (I + N(T)) g, N(T) = n + tc (T - 25).
+
+        n, tc: 3x3 (rows: output axis, columns: the acceleration's axis), off-diagonal only,
+        tc per degC. Refused (ValueError) if any term leaves the datasheets' +-2 %
+        (PS-MPU-6000A-00 table 6.2, PS-MPU-9250A-01 table 3.2: cross-axis sensitivity) anywhere
+        in -40..85 degC. Not set: no cross-axis (the default, as before)."""
+        n = [[float(v) for v in row] for row in n]
+        tc = [[0.0] * 3 for _ in range(3)] if tc is None else [[float(v) for v in row] for row in tc]
+        for i in range(3):
+            if n[i][i] or tc[i][i]:
+                raise ValueError("cross-axis N[%d][%d]: the diagonal is the sensitivity, not a cross-axis term" % (i, i))
+            for j in range(3):
+                for t in (-40.0, 85.0):  # linear in T: the extremes are at the ends
+                    v = n[i][j] + tc[i][j] * (t - 25.0)
+                    if abs(v) > 0.02:
+                        raise ValueError("cross-axis N[%d][%d] = %.4f at %.0f degC is outside the datasheet's "
+                                         "+-2 %%" % (i, j, v, t))
+        self.cross = (n, tc)
 
     def power_cycle(self):
         """Power off and on: registers at reset values, factory trim reloaded, FIFO empty."""
@@ -310,6 +333,10 @@ class MPU6xxxSim:
         asens = 16384.0 / (1 << afs)
         out = []
         acc = self._gravity()
+        if self.cross is not None:
+            n, tc = self.cross
+            d = self.temp_c - 25.0
+            acc = [acc[i] + sum((n[i][j] + tc[i][j] * d) * acc[j] for j in range(3)) for i in range(3)]
         for k in range(3):
             a = self.accel_base + self.stride * k
             word = _s16(r[a], r[a + 1])

@@ -19,15 +19,16 @@ training temperature range, or every effect is judged on extrapolation.
   - PAN: train = bursts 0-9 and 15-24; withheld = bursts 10-14 (about 20.5 -> 19 degC), a
     middle temperature band, since the test only cools.
 """
-import argparse
 import csv
+import io
 import os
 import sys
 
 import numpy as np
 
-from tools import REPO
-from tools.simgap.logio import LogError, write_log
+from tools import REPO, hostio
+from tools.hostio import HostError, read_text
+from tools.simgap.logio import LIMIT, LogError, write_log
 
 RAD_TO_MDPS = 180.0 / np.pi * 1000.0
 STANDARD_G = 9.80665          # m/s^2 per g (definition); local g is absorbed by the fit
@@ -47,27 +48,32 @@ def default_data_dir():
 def _read_table(path, delim, columns):
     """Named columns of a delimited text file as float arrays; errors name line and column."""
     try:
-        f = open(path, newline="", encoding="utf-8-sig")
-    except OSError as e:
-        raise LogError(f"{path}: cannot read: {e.strerror}") from None
-    with f:
-        rows = csv.reader(f, delimiter=delim)
-        header = [h.strip() for h in next(rows)]
-        miss = [c for c in columns if c not in header]
-        if miss:
-            raise LogError(f"{path}: line 1: missing column(s) {', '.join(miss)}")
-        idx = [header.index(c) for c in columns]
-        out = [[] for _ in columns]
-        for ln, row in enumerate(rows, start=2):
-            if not row:
-                continue
-            for k, i in enumerate(idx):
-                try:
-                    out[k].append(float(row[i]))
-                except (ValueError, IndexError):
-                    cell = row[i] if i < len(row) else "<missing>"
-                    raise LogError(f"{path}: line {ln}, column {i + 1} ({columns[k]}): "
-                                   f"not a number: {cell!r}") from None
+        text = read_text(path)
+    except HostError as e:
+        raise LogError(str(e)) from None
+    rows = csv.reader(io.StringIO(text), delimiter=delim)
+    header = [h.strip() for h in next(rows, [])]
+    miss = [c for c in columns if c not in header]
+    if miss:
+        raise LogError(f"{path}: line 1: missing column(s) {', '.join(miss)}")
+    idx = [header.index(c) for c in columns]
+    out = [[] for _ in columns]
+    for ln, row in enumerate(rows, start=2):
+        if not row:
+            continue
+        for k, i in enumerate(idx):
+            cell = row[i] if i < len(row) else "<missing>"
+            try:
+                v = float(cell)
+            except ValueError:
+                raise LogError(f"{path}: line {ln}, column {i + 1} ({columns[k]}): "
+                               f"not a number: {cell!r}") from None
+            if not abs(v) < LIMIT:  # NaN, inf, or a value no logger writes
+                raise LogError(f"{path}: line {ln}, column {i + 1} ({columns[k]}): "
+                               f"{cell!r} is not a finite reading (|value| < {LIMIT:g})")
+            out[k].append(v)
+    if not out[0]:
+        raise LogError(f"{path}: no data rows")
     return {c: np.asarray(v) for c, v in zip(columns, out)}
 
 
@@ -115,15 +121,15 @@ def _split(cols, mask):
 
 def convert(data_dir, out_dir):
     """Write all converted logs; returns {name: (train path, withheld path)}."""
+    gyro, acc, meta = tofupilot(os.path.join(data_dir, TOFU_REL))
+    pg, pmeta = pan(os.path.join(data_dir, PAN_REL))  # every input read before anything is written
     os.makedirs(out_dir, exist_ok=True)
     done = {}
-    gyro, acc, meta = tofupilot(os.path.join(data_dir, TOFU_REL))
     train = np.arange(len(gyro["time_s"])) < TOFU_SPLIT
     for name, cols, sensor, ref_unit, unit in (("tofupilot_gyro", gyro, "gyro", "dps", "mdps"),
                                                ("tofupilot_accel", acc, "accel", "g", "mg")):
         m = dict(meta, sensor=sensor, ref_unit=ref_unit, out_unit=unit)
         done[name] = _write_pair(out_dir, name, *_split(cols, train), m)
-    pg, pmeta = pan(os.path.join(data_dir, PAN_REL))
     burst = np.arange(len(pg["time_s"])) // PAN_BURST
     train = ~np.isin(burst, list(PAN_HELD_BURSTS))
     m = dict(pmeta, sensor="gyro", ref_unit="dps", out_unit="mdps")
@@ -140,15 +146,16 @@ def _write_pair(out_dir, name, train, held, meta):
 
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(prog="python -m tools.simgap.convert")
+    ap = hostio.Parser(prog="python -m tools.simgap.convert")
     ap.add_argument("--data", default=default_data_dir())
     ap.add_argument("--out", default=os.path.join("out", "real"))
     a = ap.parse_args(argv)
     try:
         done = convert(a.data, a.out)
     except LogError as e:
-        print(f"error: {e}", file=sys.stderr)
-        return 2
+        return hostio.fail(e)
+    except OSError as e:
+        return hostio.fail(f"{e.filename or a.out}: cannot write: {e.strerror}")
     for name, (tp, wp) in done.items():
         print(f"{name}: {tp} {wp}")
     return 0

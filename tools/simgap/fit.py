@@ -30,6 +30,27 @@ class Problem:
         self.fold_m = self.fold[m]
         self.runs_m = self.runs_t[m]
         self._idx = [np.flatnonzero(self.fold_m == f) for f in range(self.nfold)]
+        # A held-out segment scores only where the other segments have been: rows at a
+        # temperature (or input) only that segment reaches would judge extrapolation, and a
+        # shape that happens to bend the base model's extrapolation would read as an effect.
+        Tm, Rm = train.temp[m], train.ref[m]
+        keep = np.zeros(int(m.sum()), bool)
+        for f, i in enumerate(self._idx):
+            o = self.fold_m != f
+            if not o.any():
+                continue
+            lo, hi = Tm[o].min(), Tm[o].max()
+            tol = max(0.5, 0.02 * (hi - lo))
+            k = (Tm[i] >= lo - tol) & (Tm[i] <= hi + tol)
+            for a in range(3):
+                rlo, rhi = Rm[o, a].min(), Rm[o, a].max()
+                rt = 0.05 * max(rhi - rlo, 1e-12)
+                k &= (Rm[i, a] >= rlo - rt) & (Rm[i, a] <= rhi + rt)
+            keep[i] = k
+        if keep.sum() < 0.3 * keep.size:
+            keep[:] = True      # nothing inside: a plateau log; segments judge as they are
+        self.cv_keep = keep
+        self.cv_fold = self.fold_m[keep]
 
     def _target(self, p):
         if self.model is None:
@@ -71,7 +92,7 @@ class Problem:
                 # from the block's first samples of that run, as for a withheld log.
                 seen = np.isin(self.runs_m[i], self.runs_m[self.fold_m != f])
                 r_cv[i] = _startup_correct(r_cv[i], self.runs_m[i], ~seen)
-        out = {"cv": r_cv, "w": None}
+        out = {"cv": r_cv[self.cv_keep], "w": None}
         if withheld and self.withheld is not None:
             pw = self.withheld
             beta = _solve(G, b)
@@ -110,6 +131,39 @@ class Problem:
             rr = p.log.run if p.log.run is not None else np.zeros(len(p), int)
             r = _startup_correct(r, rr, np.ones(len(r), bool))
         return r
+
+
+    def coefficients(self, axis, blocks):
+        """The fit on every masked training row in physical units: (base or None when the sim
+        is given, [(effect, shape, coefficients)], per-run constants {run: c} or None)."""
+        m = self.train.mask
+        X = self._design(self.train, axis, blocks)[m]
+        y = self.y_t[m, axis]
+        per_run = any(BY_NAME[n].per_run for n, _ in blocks)
+        runs = np.unique(self.runs_m)
+        if per_run:
+            X = np.column_stack([X, (self.runs_m[:, None] == runs[None, :]).astype(float)])
+        scale = np.sqrt(np.mean(X * X, axis=0)) if X.shape[1] else np.zeros(0)
+        scale[scale == 0] = 1.0
+        Xs = X / scale
+        beta = _solve(Xs.T @ Xs, Xs.T @ y) / scale if X.shape[1] else np.zeros(0)
+        k = 0
+        base = None
+        if self.model is None:
+            keep = self.ctx.base[axis][0]
+            nb = int(sum(keep))
+            base = np.zeros(5)
+            base[np.flatnonzero(keep)] = beta[:nb]   # unidentified parameters stay 0
+            k = nb
+        parts = []
+        for name, shape in blocks:
+            if BY_NAME[name].per_run:
+                continue
+            w = BY_NAME[name].columns(self.ctx, self.train, shape, axis).shape[1]
+            parts.append((name, shape, beta[k:k + w]))
+            k += w
+        tob = {int(r): float(c) for r, c in zip(runs, beta[k:])} if per_run else None
+        return base, parts, tob
 
 
 def _solve(G, b):

@@ -9,9 +9,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from tools.hostio import HostError, read_text
+
 REQUIRED = ("time_s", "temp_c", "out_x", "out_y", "out_z", "ref_x", "ref_y", "ref_z")
 OPTIONAL = ("supply_v", "acc_x", "acc_y", "acc_z", "chamber_c", "run")
 AXES = ("x", "y", "z")
+# no log holds a reading near this (time stamps in s, degC, LSB, mV); squaring such a cell in a
+# least-squares fit overflows to inf
+LIMIT = 1e12
 
 
 class LogError(ValueError):
@@ -53,10 +58,9 @@ def read_log(path, text=None):
     name = str(path)
     if text is None:
         try:
-            with open(path, newline="", encoding="utf-8-sig") as f:
-                text = f.read()
-        except OSError as e:
-            raise LogError(f"{name}: cannot read: {e.strerror}") from None
+            text = read_text(path)
+        except HostError as e:
+            raise LogError(str(e)) from None
     lines = text.splitlines()
     meta = {}
     lineno = 0
@@ -101,6 +105,9 @@ def read_log(path, text=None):
             if not np.isfinite(v):
                 raise LogError(f"{name}: line {ln}, column {col[c] + 1} ({c}): "
                                f"not a finite number: {cell!r}")
+            if abs(v) >= LIMIT:
+                raise LogError(f"{name}: line {ln}, column {col[c] + 1} ({c}): "
+                               f"{cell} is beyond any logged reading (|value| < {LIMIT:g}); a typo?")
             data[c].append(v)
     n = len(data["time_s"])
     if n < 10:

@@ -6,9 +6,9 @@ JSON form (`--model`):
 meaning out = o0 + o1*dT + o2*dT^2 + (s0 + s1*dT) * ref with dT = temp - t0_c, in out units per
 ref unit.
 """
-import json
-
 import numpy as np
+
+from tools.hostio import HostError, load_json
 
 from .logio import AXES, LogError
 
@@ -21,12 +21,9 @@ class FixedModel:
     @classmethod
     def load(cls, path):
         try:
-            with open(path) as f:
-                d = json.load(f)
-        except OSError as e:
-            raise LogError(f"{path}: cannot read model: {e.strerror}") from None
-        except json.JSONDecodeError as e:
-            raise LogError(f"{path}: line {e.lineno}, column {e.colno}: not JSON: {e.msg}") from None
+            d = load_json(path)
+        except HostError as e:
+            raise LogError(str(e)) from None
         try:
             t0 = float(d.get("t0_c", 25.0))
             coef = {}
@@ -37,7 +34,7 @@ class FixedModel:
                 if len(off) != 3 or len(sen) != 2:
                     raise ValueError(f"axis {a}: need 3 offset and 2 sensitivity coefficients")
                 coef[a] = (off, sen)
-        except (KeyError, TypeError, ValueError) as e:
+        except (KeyError, TypeError, ValueError, AttributeError) as e:
             raise LogError(f"{path}: bad model: {e}") from None
         return cls(t0, coef)
 
@@ -51,7 +48,10 @@ class FixedModel:
 
 
 def base_columns(ctx, log, axis):
-    """Regressors of the fitted sim for one axis (scaled so the normal equations stay sane)."""
-    d = (log.temp - ctx.t0) / ctx.tscale
-    r = log.ref[:, axis] / ctx.ref_scale[axis]
-    return np.column_stack([np.ones_like(d), d, d * d, r, r * d])
+    """Regressors of the fitted sim for one axis in physical units (degC from t0, ref units);
+    the solver scales each column, so its coefficients are the model's as they stand."""
+    d = log.temp - ctx.t0
+    r = log.ref[:, axis]
+    cols = np.column_stack([np.ones_like(d), d, d * d, r, r * d])
+    keep = getattr(ctx, "base", None)
+    return cols[:, keep[axis][0]] if keep is not None else cols

@@ -1,0 +1,100 @@
+"""From a log to the board: the diagnosis' model exported (tools/simgap/export.py) and run by the
+device code in the real MicroPython VM (tools/simgap/replay.py) over a withheld log. On logs
+from our own generator (helpers/augsynth.py), one effect each, the device's shrink (augmented
+replay RMS over base-only replay RMS) equals the host's (the diagnosis' host_check RMS ratio)."""
+import json
+import subprocess
+import sys
+
+import augsynth
+import numpy as np
+import pytest
+from paths import REPO
+
+from tools.simgap import export, replay
+from tools.simgap.diagnose import diagnose
+from tools.simgap.logio import write_log
+
+
+def run_effect(effect):
+    tr, wh = augsynth.make(effect), augsynth.make(effect, withheld=True)
+    res, _ = diagnose(tr, wh)
+    exp = export.build(res, tr)
+    full, _ = replay.replay(exp, wh)
+    base, _ = replay.replay(exp, wh, base_only=True)
+    return res, exp, full, base
+
+
+@pytest.mark.parametrize("effect", augsynth.EFFECTS)
+def test_device_shrink_equals_host_shrink(effect):
+    res, exp, full, base = run_effect(effect)
+    assert effect in {e["name"] for e in exp["on_device"]}, (res["verdict"], exp["not_on_device"])
+    assert not exp["not_on_device"]
+    h = exp["host"]["rms"]
+    for a in "xyz":
+        host = h["augmented"][a] / h["base_only"][a]
+        dev = full["rms"][a] / base["rms"][a]
+        assert abs(dev - host) <= 0.005 + 0.02 * host, (a, host, dev)
+    # the generator put the effect on x: the board's own output shows it gone
+    assert full["rms"]["x"] < 0.6 * base["rms"]["x"]
+    for r in (full, base):
+        assert r["allocated_per_sample"] == 0 and r["heap_locked"]
+        assert r["rows"] == 3000 and r["unit"] == "dps"
+
+
+def test_an_empty_verdict_exports_the_base_model():
+    tr = augsynth.make("hysteresis", seed=3)
+    wh = augsynth.make("hysteresis", seed=3, withheld=True)
+    # the same generator with the effect taken out again: nothing to find
+    for log in (tr, wh):
+        log.out[:, 0] -= np.round(12.0 * (augsynth._play(log.temp, 4.0) - log.temp))
+    res, _ = diagnose(tr, wh)
+    if res["verdict"]:
+        pytest.skip("the diagnosis named %s on a log without effects (issue 15's business)" % res["verdict"])
+    exp = export.build(res, tr)
+    assert exp["device"]["features"] == [] and exp["on_device"] == []
+    assert exp["device"]["offset"] == exp["base"]["offset"]
+    full, _ = replay.replay(exp, wh)
+    base, _ = replay.replay(exp, wh, base_only=True)
+    assert full["rms"] == base["rms"]
+
+
+def test_the_commands_from_a_log_to_a_replay(tmp_path):
+    paths = {}
+    for name, log in (("train", augsynth.make("hysteresis")),
+                      ("held", augsynth.make("hysteresis", withheld=True))):
+        cols = {"time_s": log.t, "temp_c": log.temp}
+        cols.update({"out_%s" % a: log.out[:, i] for i, a in enumerate("xyz")})
+        cols.update({"ref_%s" % a: log.ref[:, i] for i, a in enumerate("xyz")})
+        paths[name] = str(tmp_path / ("%s.csv" % name))
+        write_log(paths[name], cols, log.meta)
+    model = str(tmp_path / "model.json")
+    py = [sys.executable, "-m", "tools"]
+    r = subprocess.run(py + ["gap", paths["train"], "--withheld", paths["held"], "--json",
+                             str(tmp_path / "gap.json"), "--export", model],
+                       cwd=REPO, capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+    assert "exported" in r.stdout and "hysteresis" in r.stdout
+    outs = {}
+    for flag in ("", "--base-only"):
+        out = str(tmp_path / ("r%s.json" % flag))
+        r = subprocess.run(py + ["replay", model, paths["held"], "--json", out] + ([flag] if flag else []),
+                           cwd=REPO, capture_output=True, text=True, timeout=300)
+        assert r.returncode == 0, r.stderr
+        with open(out) as f:
+            outs[flag] = json.load(f)
+        assert set(outs[flag]) >= {"rms", "unit", "rows", "allocated_per_sample"}
+        assert outs[flag]["allocated_per_sample"] == 0
+    assert outs[""]["rms"]["x"] < 0.2 * outs["--base-only"]["rms"]["x"]
+
+
+def test_replay_refuses_what_is_not_a_model(tmp_path):
+    bad = tmp_path / "m.json"
+    bad.write_text('{"verdict": []}')
+    log = tmp_path / "l.csv"
+    log.write_text("time_s,temp_c,out_x,out_y,out_z,ref_x,ref_y,ref_z\n" + "\n".join(
+        "%d,25,1,2,3,0,0,0" % i for i in range(12)))
+    r = subprocess.run([sys.executable, "-m", "tools", "replay", str(bad), str(log), "--json",
+                        str(tmp_path / "o.json")], cwd=REPO, capture_output=True, text=True, timeout=120)
+    assert r.returncode == 2
+    assert r.stderr.count("\n") == 1 and "not an exported model" in r.stderr
