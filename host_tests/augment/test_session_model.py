@@ -7,10 +7,10 @@ from array import array
 
 import augsynth
 import pytest
+
 from tempcomp import augment
 from tempcomp.session import Aborted, Session
 from tempcomp.store import KIND_AUGMENT, Store
-
 from tools.sim.buses import SimI2C
 from tools.sim.mpu6xxx_sim import MPU6xxxSim
 from tools.simgap import export

@@ -450,9 +450,12 @@ class Session:
 
         from tempcomp import augment
 
+        path = self.model_path
+        if path is None:
+            return
         while True:
             try:
-                with open(self.model_path) as f:
+                with open(path) as f:
                     d = json.load(f)
                 st = d["store"]
                 vals = [int(v) for v in st["values"]]
