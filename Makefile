@@ -16,7 +16,7 @@ PYTEST_ARGS ?=
 MICROPY_SRC ?=
 CIRCUITPY_SRC ?=
 
-.PHONY: setup fw test demo bench mpy typecheck lint deploy clean board board-start board-stop gap gap-check
+.PHONY: setup fw test demo bench mpy typecheck lint deploy dist clean board board-start board-stop gap gap-check
 
 setup: $(VENV)/.stamp $(NODE_MODULES)/.stamp fw
 
@@ -64,8 +64,13 @@ gap-check: setup
 mpy: setup
 	$(PY) -m tools mpy build/mpy
 
+# .mpy files by default (PY_SOURCES=1: the .py sources); docs/install.md
 deploy: setup
-	BOARD_TCP=$(BOARD_TCP) $(PY) -m tools deploy --port "$(PORT)" --board "$(BOARD)"
+	BOARD_TCP=$(BOARD_TCP) $(PY) -m tools deploy --port "$(PORT)" --board "$(BOARD)" $(if $(filter 1 yes,$(PY_SOURCES)),--py)
+
+# mip-installable .mpy packages, one per .mpy version: dist/mpy-v6.3/package.json + tempcomp/*.mpy
+dist: setup
+	$(PY) -m tools dist dist
 
 # The virtual board: the MicroPython VM serving its REPL on 127.0.0.1:$(BOARD_TCP), flash kept in
 # build/vboard/flash/. `make board` runs it in the foreground; board-start/board-stop in the background.
@@ -79,4 +84,4 @@ board-stop:
 	node tools/vboard/server.mjs --stop
 
 clean:
-	rm -rf build $(VENV) $(NODE_MODULES)
+	rm -rf build dist $(VENV) $(NODE_MODULES)

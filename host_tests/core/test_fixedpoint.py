@@ -60,7 +60,7 @@ def _bounded(comp):
     if comp._p3 is not None:
         bind(comp, ["_p3"])
     for p in comp._sc + comp._off:
-        bind(p, ["_a", "_a0", "_mid", "_h", "_vs", "_vr"])
+        bind(p, ["_a", "_a0", "_a0h", "_a0l", "_vm", "_mid", "_h", "_vs", "_vr"])
     comp._t = None
     return comp
 

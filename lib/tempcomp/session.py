@@ -41,8 +41,6 @@ just before each capture (a robot arm, or the virtual board's ``vboard_sensors.w
 import time
 
 from tempcomp import sensors as _sensors
-from tempcomp.mpu6xxx_tc import BiasModel
-from tempcomp.store import Store
 
 
 def _now_ms():
@@ -425,6 +423,10 @@ class Session:
         return r
 
     def _apply_and_save(self):
+        # loaded here, at the end: the session's heap during the captures stays small (docs/ram.md)
+        from tempcomp.mpu6xxx_tc import BiasModel, merge_points
+        from tempcomp.store import Store
+
         s = self.s
         r = self.result
         st = Store(self.store_path)
@@ -444,6 +446,13 @@ class Session:
         pts = r.get("points") or []
         mpts = [x["mpu"] for x in pts if "mpu" in x]
         if mpu is not None and mpts:
+            n = len(mpts)
+            mpts, same = merge_points(mpts)
+            if same:
+                print("  ! %d temperature points had the same MPU temperature reading as another (%s): "
+                      "the temperature did not move between them; averaged, the fit uses %d point(s)" % (
+                          n - len(mpts), ", ".join("%.2f degC" % (mpu.temp_c100(t) / 100.0) for t in same),
+                          len(mpts)))
             model = BiasModel(mpts)
             mpu.compensate(model)
             s.model = model
