@@ -62,6 +62,34 @@ def _fit(ts, ys, t_ref):
     return _lsq_quadratic(ts, ys, t_ref)
 
 
+def merge_points(points):
+    """Average bias points that share a temperature reading: (points, readings merged).
+
+    Two captures at the same raw temperature happen on a real board when a heater is slower
+    than the session (or the board did not warm at all): they measure the same thing twice, so
+    they are averaged into one point instead of making the fit fail."""
+    groups = {}
+    order = []
+    for p in points:
+        t = int(p[0])
+        if t not in groups:
+            groups[t] = []
+            order.append(t)
+        groups[t].append(p)
+    out = []
+    merged = []
+    for t in order:
+        g = groups[t]
+        if len(g) == 1:
+            out.append(g[0])
+            continue
+        merged.append(t)
+        n = float(len(g))
+        out.append((t, tuple(sum(p[1][k] for p in g) / n for k in range(3)),
+                    tuple(sum(p[2][k] for p in g) / n for k in range(3))))
+    return out, merged
+
+
 class BiasModel:
     """Offset-register values vs raw temperature for the six axes (gyro x y z, accel x y z).
 
@@ -77,7 +105,9 @@ class BiasModel:
         ts = [int(p[0]) for p in pts]
         for i in range(1, len(ts)):
             if ts[i] == ts[i - 1]:
-                raise ValueError("two bias points at the same temperature reading %d" % ts[i])
+                raise ValueError("two bias points at the same temperature reading %d: the temperature did "
+                                 "not move between them; average them with merge_points() or capture "
+                                 "the second after it has changed" % ts[i])
         for p in pts:
             if len(p[1]) != 3 or len(p[2]) != 3:
                 raise ValueError("a bias point is (t_raw, (gx, gy, gz), (ax, ay, az)), got %r" % (p,))
