@@ -1,6 +1,8 @@
 # tempcomp: `make demo` runs the main job on the virtual board, `make test` runs every test.
 # Both set up what they need first (`make setup`): a .venv from requirements.txt and the
-# node tools (MicroPython WebAssembly VM, pyright) from tools/package-lock.json.
+# node tools (MicroPython WebAssembly VM, pyright) from tools/package-lock.json, and the real
+# interpreters in build/fw (Cortex-M3/M7 MicroPython firmware, CircuitPython, mpy-cross; see
+# tools/firmware/build.py), built from MICROPY_SRC= / CIRCUITPY_SRC= or ../shared/vendor.
 
 PYTHON ?= python3
 VENV := .venv
@@ -11,10 +13,16 @@ BOARD ?= virtual
 BOARD_TCP ?= 2323
 VBOARD := $(PY) -m tools board
 PYTEST_ARGS ?=
+MICROPY_SRC ?=
+CIRCUITPY_SRC ?=
 
-.PHONY: setup test demo bench mpy typecheck lint deploy clean board board-start board-stop gap gap-check
+.PHONY: setup fw test demo bench mpy typecheck lint deploy dist clean board board-start board-stop gap gap-check
 
-setup: $(VENV)/.stamp $(NODE_MODULES)/.stamp
+setup: $(VENV)/.stamp $(NODE_MODULES)/.stamp fw
+
+# builds only what is missing from build/fw (delete a file there to rebuild it)
+fw: $(VENV)/.stamp
+	$(PY) -m tools.firmware.build $(if $(MICROPY_SRC),--micropython-src "$(MICROPY_SRC)") $(if $(CIRCUITPY_SRC),--circuitpython-src "$(CIRCUITPY_SRC)")
 
 $(VENV)/.stamp: requirements.txt
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
@@ -56,11 +64,17 @@ gap-check: setup
 mpy: setup
 	$(PY) -m tools mpy build/mpy
 
+# .mpy files by default (PY_SOURCES=1: the .py sources); docs/install.md
 deploy: setup
-	BOARD_TCP=$(BOARD_TCP) $(PY) -m tools deploy --port "$(PORT)" --board "$(BOARD)"
+	BOARD_TCP=$(BOARD_TCP) $(PY) -m tools deploy --port "$(PORT)" --board "$(BOARD)" $(if $(filter 1 yes,$(PY_SOURCES)),--py)
 
-# The virtual board: the MicroPython VM serving its REPL on 127.0.0.1:$(BOARD_TCP), flash kept in
-# build/vboard/flash/. `make board` runs it in the foreground; board-start/board-stop in the background.
+# mip-installable .mpy packages, one per .mpy version: dist/mpy-v6.3/package.json + tempcomp/*.mpy
+dist: setup
+	$(PY) -m tools dist dist
+
+# The virtual board: the MicroPython VM serving its REPL on a pty (build/vboard/tty, for
+# `mpremote connect build/vboard/tty repl`) and on 127.0.0.1:$(BOARD_TCP) (exec, cp, mount), flash kept
+# in build/vboard/flash/. `make board` runs it in the foreground; board-start/board-stop in the background.
 board: setup
 	$(VBOARD) --port $(BOARD_TCP)
 
@@ -71,4 +85,4 @@ board-stop:
 	node tools/vboard/server.mjs --stop
 
 clean:
-	rm -rf build $(VENV) $(NODE_MODULES)
+	rm -rf build dist $(VENV) $(NODE_MODULES)

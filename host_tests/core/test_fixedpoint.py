@@ -3,6 +3,7 @@ float64 reference, temperature policy, set-up errors, and the same code in the M
 
 import random
 
+import interps
 import numpy as np
 import pytest
 from bounded import BInt, BoundError, bind
@@ -59,7 +60,7 @@ def _bounded(comp):
     if comp._p3 is not None:
         bind(comp, ["_p3"])
     for p in comp._sc + comp._off:
-        bind(p, ["_a", "_a0", "_mid", "_h", "_vs", "_vr"])
+        bind(p, ["_a", "_a0", "_a0h", "_a0l", "_vm", "_mid", "_h", "_vs", "_vr"])
     comp._t = None
     return comp
 
@@ -321,8 +322,9 @@ allocprobe.report("float_formula", floatpath, (1234,))
 """
 
 
-def test_vm_gives_the_same_results_and_allocates_nothing():
-    out = vm.run(VM_CODE)
+def test_vm_gives_the_same_results_and_allocates_nothing(interp):
+    # on every interpreter: the WebAssembly VM, Cortex-M3/M7 firmware, CircuitPython
+    out = interps.run(interp, VM_CODE)
     rows = [line for line in out.splitlines() if line.startswith("ROWS ")][0][5:].split(";")
     offs = [[-35.0, 0.009, -2e-7], [12.0, -0.003], [3.0, 0.0, 1e-7, -1e-11]]
     scs = [[131.0, 4e-4, -3e-8], [130.0], [132.5, -2e-4]]

@@ -10,6 +10,7 @@ import random
 import re
 import sys
 
+import interps
 import numpy as np
 import pytest
 from paths import REPO
@@ -583,10 +584,10 @@ def doc_block(tag):
     return m.group(1)
 
 
-def test_in_the_micropython_vm(mpvm):
+def test_in_the_micropython_vm(interp):
     doc = doc_block("micropython")
     assert len(doc.strip().splitlines()) == 5
-    out = mpvm("DOC = %r\n" % doc + VM_SCRIPT,
+    out = interps.run(interp, "DOC = %r\n" % doc + VM_SCRIPT,
                mounts=(os.path.join(REPO, "tools", "sim") + ":/simdir",), paths=("/simdir",))
     lines = {ln.split(" ", 1)[0]: ln.split(" ", 1)[1] for ln in out.splitlines() if " " in ln}
     assert float(lines["DOC"]) == pytest.approx(42.0, abs=0.4)

@@ -12,6 +12,7 @@ clean calibration meets: half a register step plus four sigma of the capture mea
 import math
 import warnings
 
+import interps
 import pytest
 
 from tempcomp.mpu6xxx import MIN_PACKETS, MPU6xxx, MPUError
@@ -291,13 +292,13 @@ def test_restore_on_a_part_that_changed_its_trim_and_the_periodic_check(tmp_path
     assert imu2.check(every_ms=1000) == 0  # due, read, nothing changed
 
 
-def test_fault_handling_in_the_micropython_vm(mpvm):
+def test_fault_handling_in_the_micropython_vm(interp):
     import os
 
     from paths import REPO
 
-    out = mpvm("import mpu6xxx_faultcheck", mounts=(os.path.join(REPO, "tools", "sim") + ":/tools/sim",),
-               paths=("/",), timeout=300)
+    out = interps.run(interp, "import mpu6xxx_faultcheck",
+                      mounts=(os.path.join(REPO, "tools", "sim") + ":/tools/sim",), paths=("/",), timeout=300)
     assert "DONE" in out, out
     assert not [ln for ln in out.splitlines() if ln.startswith("FAIL")], out
     garbles = [ln.split() for ln in out.splitlines() if ln.startswith("GARBLE ")]

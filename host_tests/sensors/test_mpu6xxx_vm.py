@@ -9,6 +9,7 @@ must reproduce exactly.
 import os
 import sys
 
+import interps
 import pytest
 from paths import REPO
 
@@ -19,10 +20,10 @@ from tools.sim.mpu6xxx_sim import FACES, MPU6xxxSim
 
 
 @pytest.fixture(scope="module")
-def vm_out():
-    from tools.firmware import mpvm
-
-    return mpvm.run(
+def vm_out(interp):
+    # on every interpreter (the interp fixture): the WebAssembly VM, Cortex-M3/M7 firmware, CircuitPython
+    return interps.run(
+        interp,
         "import mpu6xxx_vmcheck\nmpu6xxx_vmcheck.main()",
         mounts=(os.path.join(REPO, "tools", "sim") + ":/tools/sim",),
         paths=("/",),

@@ -1,6 +1,7 @@
 """AN12760, analog gyro and cross-axis paths in the real MicroPython VM: results and zero allocation."""
 
 
+import interps
 import numpy as np
 from paths import REPO
 
@@ -115,13 +116,13 @@ T_SCALE = 1 / 333.87
 CODES = [int(round((t - 21.0) / T_SCALE)) for t in (-60.0, -40.0, -7.5, 25.0, 61.0, 85.0, 110.0)]
 
 
-def test_vm_results_and_zero_allocation(mpvm):
+def test_vm_results_and_zero_allocation(interp):
     T = [-40, -40, -40, 25, 25, 25, 105, 105, 105]
     G = [-1.0, 0.0, 1.0] * 3
     raw = [int(round(v * 16.384)) for v in F.simulate_mg(np.array(T, float), np.array(G), -20.0, 1.0, 0.0264, -0.001)]
     code = VM_CODE.replace("ROWS", repr(list(zip(T, raw)))).replace("LAW0", repr(LAW0)).replace(
         "LAW1", repr(LAW1)).replace("CODES", repr(CODES))
-    out = mpvm(code, mounts=(REPO + "/tools:/tools",), paths=("/",))
+    out = interps.run(interp, code, mounts=(REPO + "/tools/sim:/tools/sim",), paths=("/",))
     lines = {ln.split()[0]: ln.split()[1:] for ln in out.splitlines() if ln and not ln.startswith("ALLOC")}
     # AN12760 Table 10 AccTCOTCS in the VM: exactly -1000.0 / 0.0 / +1000.0 mg (0.1 mg units)
     assert [int(v) for v in lines["T10"]] == [-10000, 0, 10000] * 3

@@ -62,6 +62,8 @@ _S_MAX = const(24)
 _MAX_DEGREE = const(3)
 _SPAN_LIMIT = const(65535)  # t and raw ranges: half-span <= 2**15 keeps |x| limbs in bound
 _SCALE_RATIO = const(2)  # scale may vary at most 2x over the input range
+_EXT = const(14)  # extra fraction bits of eval_ext(): the scale's rounding, 2**-27 -> 2**-41
+_EXT_MASK = const(0x3FFF)
 
 
 def mul_shift(a, x, h):
@@ -224,12 +226,28 @@ class Poly:
         n = [b[j] * _pow2(h * j) for j in range(len(b))]
         while len(n) > 1 and n[-1] == 0:
             n.pop()
+        # |x| <= rho = half / 2**h (between 1/2 and 1): Horner's partial sums
+        # P_k = sum_{j>=k} n_j x**(j-k) (k >= 1, each fed to mul_shift) and the variable part
+        # V = sum_{j>=1} n_j x**j are bounded by their sums of |n_j| rho**(j-k), not of |n_j|:
+        # up to 3 more fraction bits than the plain sum for a cubic over a span just past 2**h
+        rho = half / _pow2(h)
+        deg = len(n) - 1
+        vb = 0.0
+        for k in range(1, deg + 1):
+            pk = 0.0
+            for j in range(deg, k - 1, -1):
+                pk = pk * rho + abs(n[j])
+            vb = max(vb, pk)
+        vsum = 0.0
+        for j in range(deg, 0, -1):
+            vsum = (vsum + abs(n[j])) * rho
+        vb = max(vb, vsum)
         budget = _pow2(limit) * (1.0 - 1.0 / 1024)  # room for coefficient rounding
-        frac = _fit_frac(sum(abs(v) for v in n), budget, max_frac)
+        frac = _fit_frac(abs(n[0]) + vsum, budget, max_frac)
         # The temperature-dependent part is small next to the constant (a few % of drift), so
         # it gets its own, finer scale: Horner's few units of rounding then land below one
         # unit of the result instead of adding up in it.
-        vfrac = _fit_frac(sum(abs(v) for v in n[1:]), budget, frac + 24)
+        vfrac = _fit_frac(vb, budget, frac + 24)
         if vfrac < frac:
             vfrac = frac  # (cannot happen: the variable part is no larger than the whole)
         self.frac = frac
@@ -237,10 +255,22 @@ class Poly:
         self._mid = mid
         self._h = h
         self._a0 = int(round(n[0] * _pow2(frac)))
+        # the constant again with _EXT more bits, as a0h + a0l / 2**_EXT (0 <= a0l < 2**_EXT),
+        # for eval_ext(); two small ints, no long int even where there are none
+        f0 = n[0] * _pow2(frac)
+        a0h = int(f0 // 1.0)
+        a0l = int(round((f0 - a0h) * _pow2(_EXT)))
+        if a0l >= (1 << _EXT):
+            a0h += 1
+            a0l -= 1 << _EXT
+        self._a0h = a0h
+        self._a0l = a0l
         self._a = (0,) + tuple(int(round(v * _pow2(vfrac))) for v in n[1:])
-        self._deg = len(n) - 1
+        self._deg = deg
         self._vs = vfrac - frac
         self._vr = (1 << (vfrac - frac - 1)) if vfrac > frac else 0
+        self._vm = (1 << (vfrac - frac)) - 1
+        self.ext = 0
         self._coeffs_mid = b  # float coefficients of (t - mid), for set-up checks
 
     def eval(self, t):
@@ -257,6 +287,31 @@ class Poly:
             acc = a[i] + mul_shift(acc, x, h)
         # |variable part| <= sum|a[1:]| <= 2**limit; shifted down to frac and rounded
         return self._a0 + ((mul_shift(acc, x, h) + self._vr) >> self._vs)
+
+    def eval_ext(self, t):
+        """eval(t) with _EXT more bits: returns D and sets self.ext = R, where
+        p(t) * 2**frac ~ D + R / 2**_EXT, 0 <= R < 2**_EXT. Zero allocation."""
+        i = self._deg
+        if i == 0:
+            self.ext = self._a0l
+            return self._a0h
+        a = self._a
+        acc = a[i]
+        x = t - self._mid
+        h = self._h
+        while i > 1:
+            i -= 1
+            acc = a[i] + mul_shift(acc, x, h)
+        v = mul_shift(acc, x, h)  # |v| <= 2**limit, in units of 2**-(frac + vs)
+        vs = self._vs
+        lo = v & self._vm  # 0 <= lo < 2**vs
+        if vs >= _EXT:
+            lo >>= vs - _EXT
+        else:
+            lo <<= _EXT - vs  # < 2**_EXT
+        lo += self._a0l  # < 2**(_EXT + 1)
+        self.ext = lo & _EXT_MASK
+        return self._a0h + (v >> vs) + (lo >> _EXT)
 
     def extrema(self):
         """(min, max) of the float polynomial over t_range (set-up use)."""
@@ -447,13 +502,24 @@ class Compensator:
             return
         self._t = t
         for k in range(self.axes):
-            d = self._sc[k].eval(t)
-            g = (_gain_num(self._eg[k], d) + 1) >> 1
+            sp = self._sc[k]
+            d = sp.eval_ext(t)
+            e = sp.ext
+            # the scale is d + e / 2**14: 2**e/(d + e') = q * (1 - e'/d + ...) with q = 2**e/d,
+            # so the quotients below drop q * e / (2**14 * d) (at most 2**29 * 2**14 / 2**14 /
+            # 2**24 = 32 units; the second-order term is below 2**-18 units)
+            g = _gain_num(self._eg[k], d)  # < 2**29
+            if e:
+                g -= mul_shift(g, e, _EXT) // d  # mul_shift: 2**29 * 2**14 / 2**14 < 2**30
+            g = (g + 1) >> 1
             self._gh[k] = g >> self._k
             self._gl[k] = g & self._kmask
             # floor, not round: apply()'s floor of r*gl/2**15 errs the other way, so the two
             # truncations partly cancel
-            self._b[k] = div_pow2(self._off[k].eval(t), self._eo[k], d)
+            b = div_pow2(self._off[k].eval(t), self._eo[k], d)  # |b| <= 2**29
+            if e:
+                b -= mul_shift(b, e, _EXT) // d
+            self._b[k] = b
         p = self._p3
         if p is not None:
             j = 0

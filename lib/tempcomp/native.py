@@ -21,7 +21,7 @@ import array
 
 import micropython
 
-_P = 13  # g0 l0 c0 g1 l1 c1 g2 l2 c2 k s, then the batch's stride and a spare word
+_P = 11  # g0 l0 c0 g1 l1 c1 g2 l2 c2 k s: the pure path's list, as 32-bit words
 _BUFFERS = (bytearray, bytes, memoryview)  # built once: a tuple of names in a call allocates
 
 

@@ -19,6 +19,11 @@ mount protocol (the boards have no filesystem of their own), so reads come from 
 script runs and writes land in the host directory. The firmware runs under ``-icount shift=0``:
 ``time.ticks_us()`` then advances one microsecond per 1000 executed instructions (1 ns each).
 
+On the firmware the repository's directories (lib/, host_tests/device/, mounted tools/ folders) are
+served as .mpy compiled by build/fw/mpy-cross (``-march=armv7m``), as ``make deploy`` installs the
+library on a board; ``run(..., mpy=False)`` serves the .py sources instead (a ~140 KB heap cannot
+compile the biggest modules).
+
 ``run`` raises ``InterpError`` (an ``AssertionError``) when the script raises, with its output and
 traceback. Binaries come from ``build/fw`` (``make setup`` builds them: tools/firmware/build.py).
 """
@@ -88,6 +93,43 @@ def _prologue(paths):
     return "import sys\nsys.path[:] = %r\ndel sys\n" % (["", ] + list(paths)[::-1] + ["/vmtest", "/lib"])
 
 
+MPY_CACHE = os.path.join(REPO, "build", "fw-mpy")
+MPY_ARCH = "armv7m"  # Thumb-2 native code (viper) for the M3; the M7 (armv7emdp) loads it too
+
+
+def mpy_tree(src):
+    """A mirror of host directory ``src`` with every .py compiled by build/fw/mpy-cross (other files
+    symlinked), kept up to date by mtime; what a board gets from ``make deploy``, as .mpy."""
+    dst_root = os.path.join(MPY_CACHE, src.strip(os.sep).replace(os.sep, "+"))
+    want = set()
+    for root, dirs, files in os.walk(src, followlinks=True):
+        dirs[:] = [d for d in dirs if d != "__pycache__"]
+        rel = os.path.relpath(root, src)
+        os.makedirs(os.path.join(dst_root, rel), exist_ok=True)
+        for f in files:
+            s = os.path.join(root, f)
+            if f.endswith(".py"):
+                d = os.path.join(dst_root, rel, f[:-3] + ".mpy")
+                if not os.path.exists(d) or os.path.getmtime(d) < os.path.getmtime(s):
+                    proc = subprocess.run([binary("mpy-cross"), "-march=" + MPY_ARCH, "-s",
+                                           os.path.normpath(os.path.join(rel, f)), "-o", d + ".tmp", s],
+                                          capture_output=True, text=True)
+                    if proc.returncode != 0:
+                        raise InterpError("mpy-cross failed on %s:\n%s" % (s, proc.stderr or proc.stdout))
+                    os.replace(d + ".tmp", d)
+            else:
+                d = os.path.join(dst_root, rel, f)
+                if not os.path.lexists(d):
+                    os.symlink(s, d)
+            want.add(os.path.normpath(d))
+    for root, _dirs, files in os.walk(dst_root):  # modules removed or renamed since the last run
+        for f in files:
+            p = os.path.normpath(os.path.join(root, f))
+            if p not in want:
+                os.unlink(p)
+    return dst_root
+
+
 class _Staged:
     """A host directory laid out as the script's filesystem root, made of symlinks."""
 
@@ -95,13 +137,16 @@ class _Staged:
         self.root = tempfile.mkdtemp(prefix="tempcomp-fs-")
         self.layout = None
 
-    def lay_out(self, mounts):
+    def lay_out(self, mounts, mpy=False):
         layout = [(os.path.join(REPO, "lib"), "/lib"), (VM_TEST_DIR, "/vmtest")]
         for m in mounts:
             host, _, vm = m.rpartition(":")
             if not host or not vm.startswith("/") or vm == "/":
                 raise ValueError("bad mount %r: want HOSTDIR:/VMDIR" % m)
             layout.append((os.path.abspath(host), vm.rstrip("/")))
+        if mpy:
+            layout = [(mpy_tree(h) if os.path.isdir(h) and h.startswith(REPO + os.sep) else h, v)
+                      for h, v in layout]
         if layout == self.layout:
             return
         for ent in os.listdir(self.root):
@@ -145,7 +190,7 @@ class WasmInterp(_Base):
     def __init__(self, heap="1m"):
         self.heap = heap
 
-    def run(self, code, mounts=(), paths=(), timeout=300):
+    def run(self, code, mounts=(), paths=(), timeout=300, mpy=None):  # noqa: ARG002 (firmware only)
         from tools.firmware import mpvm
         try:
             return mpvm.run(code, mounts=mounts, paths=paths, heap=self.heap, timeout=timeout)
@@ -157,11 +202,11 @@ class UnixInterp(_Base):
     """A unix-port interpreter (CircuitPython's coverage build): a fresh process per run, its
     filesystem root replaced by the staged directory (VfsPosix mounted at /)."""
 
-    def __init__(self, exe, name, heap="2m"):
+    def __init__(self, exe, name, heap="16m"):
         self.exe, self.name, self.heap = exe, name, heap
         self.fs = _Staged()
 
-    def run(self, code, mounts=(), paths=(), timeout=300):
+    def run(self, code, mounts=(), paths=(), timeout=300, mpy=None):  # noqa: ARG002 (firmware only)
         self.fs.lay_out(mounts)
         pre = "import os\nos.umount('/')\nos.mount(os.VfsPosix(%r), '/')\nos.chdir('/')\ndel os\n" % self.fs.root
         env = dict(os.environ, MICROPYPATH="")
@@ -186,10 +231,11 @@ _MOUNT = "os.mount(RemoteFS(RemoteCommand()), '/')\nos.chdir('/')\n"
 class QemuInterp(_Base):
     """MicroPython firmware on an emulated MPS2 board: booted once, soft-reset before every run."""
 
-    def __init__(self, name, boot_timeout=30):
+    def __init__(self, name, boot_timeout=30, mpy=True):
         import serial  # noqa: F401  (pyserial: mpremote's transport)
         from mpremote.transport_serial import SerialTransport
         self.name = name
+        self.mpy = mpy
         self.fs = _Staged()
         self.proc = subprocess.Popen(
             ["qemu-system-arm", "-machine", QEMU_MACHINE[name], "-nographic", "-monitor", "null",
@@ -237,11 +283,11 @@ class QemuInterp(_Base):
         t.serial = SerialIntercept(t.serial, t.cmd)
         t.mounted = True
 
-    def run(self, code, mounts=(), paths=(), timeout=300):
+    def run(self, code, mounts=(), paths=(), timeout=300, mpy=None):
         from mpremote.transport import TransportError
         if self.proc.poll() is not None:
             raise InterpError("[%s] qemu exited (status %s)" % (self.name, self.proc.returncode))
-        self.fs.lay_out(mounts)
+        self.fs.lay_out(mounts, self.mpy if mpy is None else mpy)
         self._soft_reset_and_mount()
         t = self.transport
         try:

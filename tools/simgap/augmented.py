@@ -80,7 +80,8 @@ def effect_entry(ctx, name, shape, coef, axis, causal_temp):
 
 def build(prob, state, extra_bias=None):
     """The `model` section for the final per-axis effect lists `state` {axis: [(name, shape)]}.
-    extra_bias {axis: shift}: a constant per axis recognised on a separate power-on."""
+    extra_bias {axis: {withheld run: shift}}: constants recognised on a withheld log's own
+    power-on(s), captured from the first rows of each run."""
     ctx = prob.ctx
     log = prob.train.log
     time_unit = "row" if "row index" in log.meta.get("time", "") else "s"
@@ -100,13 +101,18 @@ def build(prob, state, extra_bias=None):
             base0 = base = _shift_base(o, s, shift)
         out["base_only"][ax] = _base_json(base0)
         entry = _base_json(base)
+        if prob.model is None:
+            keep, why = ctx.base[a]
+            entry["identified"] = {"offset": keep[:3], "sensitivity": keep[3:]}
+            if why:
+                entry["not_identified_because"] = why
         effects = [effect_entry(ctx, n, sh, c, a, not ctx.quantised) for n, sh, c in parts]
         if tob is not None or (extra_bias and a in extra_bias):
             e = {"name": "turn_on_bias", "new_run": "capture"}
             if tob is not None:
                 e["per_run"] = {str(k): v for k, v in tob.items()}
             if extra_bias and a in extra_bias:
-                e["withheld_shift"] = _f(extra_bias[a])
+                e["withheld_shift"] = {str(k): _f(v) for k, v in extra_bias[a].items()}
             effects.append(e)
         entry["effects"] = effects
         out["axes"][ax] = entry

@@ -1,111 +1,320 @@
 """The whole diagnosis of one training log (and optional withheld log): returns the JSON
-contract as a dict, plus the arrays the plot needs."""
+contract as a dict, plus the arrays the plot needs.
+
+Order matters for honesty: coverage and identifiability are checked first; effects are chosen
+and judged on held-out segments of the training log only; the plausibility table removes
+fitting artefacts; only then is the withheld log scored, once, with the chosen model."""
 import numpy as np
 
-from . import augmented, prep
+from . import augmented, coverage, noise, plausible, prep
 from .effects import CATALOGUE
 from .fit import Problem
 from .logio import AXES
 from .select import Greedy, design_gaps
 from .where import localise
 
+RATIO_WARN = 1.5        # final RMS over the floor above which the residual is called unexplained
+COVERED_MIN = 0.95      # fraction of withheld rows inside the training coverage
+QUANT_WARN = 0.5        # output step over the noise floor above which quantisation is reported
+TOB_T = 5.0             # t (effective samples) of a constant shift on a separate power-on
+TOB_GAIN = 0.2          # ... and removing it must cut the withheld RMS by 20 %
+
 
 def _rms(v):
     return float(np.sqrt(np.mean(v ** 2))) if len(v) else float("nan")
 
 
-def _per_axis(values, axes):
+def _per_axis(values, axes=range(3)):
     return {AXES[a]: float(values[a]) for a in axes}
+
+
+def _warn(code, message, **kw):
+    return dict({"code": code, "message": message}, **kw)
 
 
 def diagnose(train, withheld=None, model=None):
     prob = Problem(train, withheld, model)
+    ctx = prob.ctx
+    warnings = []
+    q_t = prep.output_step(train)
     base_t = np.column_stack([prob.full_residual(prob.train, a, []) for a in range(3)])
-    sigma_t = prep.noise_floor(base_t, train, prob.train.mask)
-    if withheld is not None:
-        base_w = np.column_stack([prob.full_residual(prob.withheld, a, []) for a in range(3)])
-        sigma = prep.noise_floor(base_w, withheld, prob.withheld.mask)
-        source = f"withheld log {withheld.name}"
-    else:
-        sigma = sigma_t
-        source = f"held-out segments of the training log ({prob.nfold} contiguous blocks)"
-    g = Greedy(prob, sigma)
-    verdict = g.run()
+    sigma_t = prep.noise_floor(base_t, train, prob.train.mask, q_t)
+
+    # 1. Identifiability of the base model on the training log.
+    if model is None:
+        for a in range(3):
+            keep, why = ctx.base[a]
+            if not (keep[1] and keep[2]):
+                warnings.append(_warn(
+                    "narrow_temperature_span",
+                    f"the training log spans {ctx.tmax - ctx.tmin:.3g} degC "
+                    f"({ctx.tmin:.3g}..{ctx.tmax:.3g}): {why[0]}; those parameters are fixed, "
+                    "not fitted, and no temperature effect can be judged. Log a ramp over the "
+                    "operating range to identify them.", axis=AXES[a], span_c=ctx.tmax - ctx.tmin))
+                break
+
+    # 2. Choose effects on held-out segments of the training log.
+    g = Greedy(prob, sigma_t)
+    g.run()
     g.refine()
 
-    def scored(res):
-        return res["w"] if res["w"] is not None else res["cv"]
-
-    sim_only = [_rms(scored(prob.evaluate(a, []))) for a in range(3)]
-    effects = []
-    order = {n: i for i, n in enumerate(verdict)}
-    for name in CATALOGUE:
-        if name not in g.avail:
-            continue
-        rec = {a: g.record[(name, a)] for a in g.avail[name] if (name, a) in g.record}
-        added = [a for a in rec if (name, a) in dict.fromkeys(
-            (n, ax) for ax, blocks in g.state.items() for n, _ in blocks)]
-        axes = added or list(rec)
-        before = {a: rec[a]["rms_before"] for a in rec}
-        after = {a: rec[a]["rms_after"] for a in rec}
-        b2 = sum(before[a] ** 2 for a in axes)
-        a2 = sum(after[a] ** 2 for a in axes)
-        effects.append({
-            "name": name, "axes": [AXES[a] for a in axes],
-            "withheld_rms_before": _per_axis(before, rec),
-            "withheld_rms_after": _per_axis(after, rec),
-            "shrink": float(1 - np.sqrt(a2 / b2)) if b2 > 0 else 0.0,
-            "significant": name in order,
-            "rank": order.get(name),
-            "shape": {AXES[a]: _shape_str(v["shape"]) for a, v in rec.items()},
-            "t": {AXES[a]: round(float(v["t"]), 2) for a, v in rec.items()},
-        })
-    final = [_rms(scored(g.cur[a])) for a in range(3)]
-    # Waterfall: per-axis withheld RMS after each greedy step.
-    waterfall = [{"added": None, "withheld_rms": _per_axis(sim_only, range(3))}]
+    # 3. Plausibility: implausible fits leave the model (and the verdict).
+    implausible = []
+    for a in range(3):
+        while g.state[a]:
+            bad = plausible.check(prob, a, g.state[a])
+            if not bad:
+                break
+            name, size, limit, unit, basis = max(bad, key=lambda b: b[1] / b[2])
+            g.state[a] = [(n, s) for n, s in g.state[a] if n != name]
+            implausible.append({"effect": name, "axis": AXES[a], "size": size, "limit": limit,
+                                "unit": unit, "basis": basis})
+            warnings.append(_warn(
+                "implausible_coefficient",
+                f"{name} on {AXES[a]} fitted {size:.3g} {unit}, beyond the {limit:g} {unit} a "
+                f"{ctx.sensor} shows ({basis}); kept out of the verdict as a fitting artefact",
+                effect=name, axis=AXES[a], size=size, limit=limit, unit=unit))
+        g.cur[a] = prob.evaluate(a, g.state[a], withheld=False)
+    order = []
     for s in g.steps:
-        if s["chosen"] is None:
-            continue
-        prev = dict(waterfall[-1]["withheld_rms"])
-        for a, v in s["trials"][s["chosen"]].items():
-            if v["significant"]:
-                prev[AXES[a]] = v["rms_after"]
-        waterfall.append({"added": s["chosen"], "withheld_rms": prev})
+        if s["chosen"] and s["chosen"] not in order and any(
+                n == s["chosen"] for a in range(3) for n, _ in g.state[a]):
+            order.append(s["chosen"])
+    verdict = list(order)
+
+    # 4. Coverage of the withheld log, then its one scoring.
+    cov = {"train": coverage.describe(train)}
+    extras = {"prob": prob, "base_train": base_t, "greedy": g}
+    tob_shift = {}
+    if withheld is not None:
+        pw = prob.withheld
+        cov["withheld"] = coverage.describe(withheld)
+        inside = coverage.covered(train, withheld)
+        frac = float(np.mean(inside))
+        cov["withheld_covered_fraction"] = frac
+        q_w = prep.output_step(withheld)
+        base_w = np.column_stack([prob.full_residual(pw, a, []) for a in range(3)])
+        sigma = prep.noise_floor(base_w, withheld, pw.mask, q_w)
+        outside = frac < COVERED_MIN
+        if outside:
+            w = cov["withheld"]
+            warnings.append(_warn(
+                "withheld_outside_training",
+                f"{100 * (1 - frac):.0f} % of the withheld log lies outside what the training log "
+                f"covers (withheld {w['temp_c'][0]:.3g}..{w['temp_c'][1]:.3g} degC, training "
+                f"{ctx.tmin:.3g}..{ctx.tmax:.3g} degC, or inputs outside the training range); "
+                "it is scored on the covered rows only and no effect rests on it",
+                covered_fraction=frac))
+        rows = pw.mask & inside
+        if rows.sum() < 50:
+            rows = pw.mask.copy()   # nothing covered: report on all rows, flagged below
+        source = f"withheld log {withheld.name}" + (
+            f" ({int(rows.sum())} covered rows)" if outside else "")
+        score = {a: prob.full_residual(pw, a, g.state[a]) for a in range(3)}
+        sim_only = [_rms(base_w[rows, a]) for a in range(3)]
+        # Turn-on bias across logs: a withheld log from its own power-on(s) may sit at a
+        # constant shift per axis and run, which a user captures at start-up: the mean of
+        # the first 5 % (at least 50 rows) of each run, applied to the whole run.
+        separate = "power_on_s" not in withheld.meta
+        wrun = (withheld.run if withheld.run is not None else np.zeros(len(withheld), int))[rows]
+        corr = {}
+        if separate and not outside:
+            for a in range(3):
+                if any(n == "turn_on_bias" for n, _ in g.state[a]):
+                    continue      # each withheld run already gets its own constant
+                r = score[a][rows]
+                c = np.zeros_like(r)
+                shifts = {}
+                for run in np.unique(wrun):
+                    sel = np.flatnonzero(wrun == run)
+                    k = max(50, len(sel) // 20)
+                    c[sel] = shifts[int(run)] = float(np.mean(r[sel[:k]]))
+                tau = noise.autocorr_time(r - c - np.mean(r - c))
+                se = np.std(r - c) * np.sqrt(tau / len(r))
+                t = float(np.sqrt(np.mean(c * c))) / max(se, 1e-300)
+                if t > TOB_T and _rms(r - c) < (1 - TOB_GAIN) * _rms(r):
+                    corr[a] = c
+                    tob_shift[a] = shifts
+            if tob_shift and "turn_on_bias" not in verdict:
+                verdict.append("turn_on_bias")
+        final_resid = {a: score[a][rows] - corr.get(a, 0.0) for a in range(3)}
+        final = [_rms(final_resid[a]) for a in range(3)]
+        extras.update(base_withheld=base_w, score_withheld=score, withheld_rows=rows,
+                      tob_shift=tob_shift, tob_corr=corr)
+    else:
+        sigma = sigma_t
+        q_w = q_t
+        source = f"held-out segments of the training log ({prob.nfold} contiguous blocks)"
+        sim_only = [_rms(prob.evaluate(a, [], withheld=False)["cv"]) for a in range(3)]
+        final = [_rms(g.cur[a]["cv"]) for a in range(3)]
+        final_resid = {a: g.cur[a]["cv"] for a in range(3)}
+        outside = False
+
+    # 5. What the residual is made of.
+    for a in range(3):
+        q = max(q_t[a], q_w[a])
+        if q > QUANT_WARN * sigma[a]:
+            warnings.append(_warn(
+                "quantized_output",
+                f"{AXES[a]} output comes in steps of {q:.4g} {train.unit} "
+                f"({q / sigma[a]:.2g}x the noise floor): the floor includes the step's "
+                f"{q / np.sqrt(12):.3g} {train.unit} RMS and outliers are judged against it",
+                axis=AXES[a], step=float(q)))
+    noise_kind = {}
+    for a in range(3):
+        kind, ratio = noise.classify(final_resid[a] - np.mean(final_resid[a]), sigma[a])
+        noise_kind[AXES[a]] = {"kind": kind, "allan_ratio": ratio}
+        if kind != "white":
+            warnings.append(_warn(
+                "correlated_noise",
+                f"{AXES[a]}: the final residual is not white - {kind} (Allan deviation at the "
+                f"longest averaging time {ratio:.2g}x what white noise gives); significance uses "
+                "blocks as long as its autocorrelation time, and no temperature model removes it",
+                axis=AXES[a], kind=kind, allan_ratio=ratio))
+    ratio = {AXES[a]: float(final[a] / sigma[a]) if sigma[a] > 0 else None for a in range(3)}
+    for a in range(3):
+        if ratio[AXES[a]] is not None and ratio[AXES[a]] > RATIO_WARN:
+            warnings.append(_warn(
+                "unexplained_residual",
+                f"{AXES[a]}: the final {'withheld ' if withheld is not None else 'held-out '}"
+                f"RMS is {ratio[AXES[a]]:.2f}x the noise floor "
+                f"({final[a]:.4g} vs {sigma[a]:.4g} {train.unit})"
+                + ("" if verdict else "; no effect in the catalogue explains it"),
+                axis=AXES[a], ratio=ratio[AXES[a]]))
+
+    # 6. Per-effect records and the waterfall (training held-out segments choose; the
+    #    withheld figures are reported, never used to choose).
+    effects = _effect_records(prob, g, verdict, withheld is not None and not outside, extras)
+    waterfall = _waterfall(prob, g, order, sim_only, extras, tob_shift)
     confused, apart = g.confusions()
     gaps = design_gaps(prob, verdict, g.untried)
     seen = {frozenset(c["effects"]) for c in confused}
     not_ident = confused + [c for c in gaps if frozenset(c["effects"]) not in seen]
-    where = localise(prob.train, base_t, sigma_t, prob.ctx)
+    where = localise(prob.train, base_t, sigma_t, ctx)
     result = {
         "verdict": verdict,
         "effects": effects,
         "where": where,
-        "final": {"withheld_rms": _per_axis(final, range(3)),
+        "final": {"withheld_rms": _per_axis(final),
                   "unexplained_rms": {AXES[a]: float(np.sqrt(max(0.0, final[a] ** 2 - sigma[a] ** 2)))
                                       for a in range(3)},
-                  "ratio_to_noise": {AXES[a]: float(final[a] / sigma[a]) if sigma[a] > 0 else None
-                                     for a in range(3)}},
-        "sim_only": {"withheld_rms": _per_axis(sim_only, range(3))},
-        "noise_floor": _per_axis(sigma, range(3)),
-        "noise_floor_train": _per_axis(sigma_t, range(3)),
+                  "ratio_to_noise": ratio},
+        "sim_only": {"withheld_rms": _per_axis(sim_only)},
+        "noise_floor": _per_axis(sigma),
+        "noise_floor_train": _per_axis(sigma_t),
+        "output_step": _per_axis(np.maximum(q_t, q_w)),
+        "noise": noise_kind,
+        "warnings": warnings,
+        "coverage": cov,
+        "implausible": implausible,
         "not_identifiable": not_ident,
         "told_apart": apart,
         "untried": [{"name": n, "reason": r} for n, r in g.untried.items()],
         "waterfall": waterfall,
         "withheld_source": source,
+        "selected_on": f"held-out segments of the training log ({prob.nfold} contiguous blocks)",
         "unit": train.unit,
         "sim": "given model" if model is not None else "fitted on the training log",
         "rows": {"train": len(train), "train_outliers": int((~prob.train.mask).sum()),
                  "withheld": len(withheld) if withheld is not None else 0,
                  "withheld_outliers": int((~prob.withheld.mask).sum()) if withheld is not None else 0},
     }
-    model_json = augmented.build(prob, g.state)
+    model_json = augmented.build(prob, g.state, tob_shift)
     held = prob.withheld if withheld is not None else prob.train
     model_json["host_check"] = augmented.host_check(model_json, prob, held,
                                                     "withheld" if withheld is not None else "training")
     result["model"] = model_json
-    extras = {"prob": prob, "base_train": base_t, "greedy": g}
     return result, extras
+
+
+def _effect_records(prob, g, verdict, use_withheld, extras):
+    """One record per effect tried. Held-out (training) figures are what chose it; withheld
+    figures, when a covered withheld log exists, are the one score of the chosen model."""
+    out = []
+    rank = {n: i for i, n in enumerate(verdict)}
+    state = {a: list(g.state[a]) for a in range(3)}
+    rows = extras.get("withheld_rows")
+    for name in CATALOGUE:
+        if name == "turn_on_bias" and extras.get("tob_shift"):
+            corr = extras["tob_corr"]
+            sw = extras["score_withheld"]
+            before = {AXES[a]: _rms(sw[a][rows]) for a in range(3)}
+            after = {AXES[a]: _rms(sw[a][rows] - corr.get(a, 0.0)) for a in range(3)}
+            axes = [AXES[a] for a in corr]
+            b2 = sum(before[a] ** 2 for a in axes)
+            a2 = sum(after[a] ** 2 for a in axes)
+            out.append({"name": name, "axes": axes, "withheld_rms_before": before,
+                        "withheld_rms_after": after, "shrink": float(1 - np.sqrt(a2 / b2)),
+                        "significant": True, "rank": rank[name], "scored_on": "withheld",
+                        "source": "separate power-on(s) of the withheld log, captured at start-up",
+                        "shift": {AXES[a]: v for a, v in extras["tob_shift"].items()},
+                        "shape": {}, "t": {}})
+            continue
+        if name not in g.avail:
+            continue
+        rec = {a: g.record[(name, a)] for a in g.avail[name] if (name, a) in g.record}
+        if not rec:
+            continue
+        added = [a for a in range(3) if any(n == name for n, _ in state[a])]
+        axes = added or list(rec)
+        hb = {a: rec[a]["rms_before"] for a in rec}
+        ha = {a: rec[a]["rms_after"] for a in rec}
+        before, after, scored_on = hb, ha, "heldout"
+        if use_withheld and added:
+            before, after = {}, {}
+            for a in rec:
+                blocks = state[a]
+                if any(n == name for n, _ in blocks):
+                    without = [(n, s) for n, s in blocks if n != name]
+                    with_ = blocks
+                else:
+                    without, with_ = blocks, blocks + [(name, rec[a]["shape"])]
+                before[a] = _rms(prob.full_residual(prob.withheld, a, without)[rows])
+                after[a] = _rms(prob.full_residual(prob.withheld, a, with_)[rows])
+            scored_on = "withheld"
+        b2 = sum(before[a] ** 2 for a in axes)
+        a2 = sum(after[a] ** 2 for a in axes)
+        hb2 = sum(hb[a] ** 2 for a in axes)
+        ha2 = sum(ha[a] ** 2 for a in axes)
+        out.append({
+            "name": name, "axes": [AXES[a] for a in axes],
+            "withheld_rms_before": _per_axis(before, rec),
+            "withheld_rms_after": _per_axis(after, rec),
+            "shrink": float(1 - np.sqrt(a2 / b2)) if b2 > 0 else 0.0,
+            "scored_on": scored_on,
+            "heldout_rms_before": _per_axis(hb, rec), "heldout_rms_after": _per_axis(ha, rec),
+            "heldout_shrink": float(1 - np.sqrt(ha2 / hb2)) if hb2 > 0 else 0.0,
+            "significant": name in rank,
+            "rank": rank.get(name),
+            "shape": {AXES[a]: _shape_str(v["shape"]) for a, v in rec.items()},
+            "t": {AXES[a]: round(float(v["t"]), 2) for a, v in rec.items()},
+            "p": {AXES[a]: float(v.get("p", np.nan)) for a, v in rec.items()},
+            "autocorr_time": {AXES[a]: round(float(v.get("tau", 1.0)), 2) for a, v in rec.items()},
+        })
+    return out
+
+
+def _waterfall(prob, g, order, sim_only, extras, tob_shift):
+    """Per-axis scored RMS as the verdict's effects are added in order (final shapes)."""
+    wf = [{"added": None, "withheld_rms": _per_axis(sim_only)}]
+    rows = extras.get("withheld_rows")
+    for k, name in enumerate(order):
+        vals = dict(wf[-1]["withheld_rms"])
+        for a in range(3):
+            if not any(n == name for n, _ in g.state[a]):
+                continue
+            blocks = [(n, s) for n, s in g.state[a] if n in order[:k + 1]]
+            if rows is not None:
+                vals[AXES[a]] = _rms(prob.full_residual(prob.withheld, a, blocks)[rows])
+            else:
+                vals[AXES[a]] = _rms(prob.evaluate(a, blocks, withheld=False)["cv"])
+        wf.append({"added": name, "withheld_rms": vals})
+    if tob_shift:
+        vals = dict(wf[-1]["withheld_rms"])
+        for a, c in extras["tob_corr"].items():
+            vals[AXES[a]] = _rms(extras["score_withheld"][a][rows] - c)
+        wf.append({"added": "turn_on_bias", "withheld_rms": vals})
+    return wf
 
 
 def _shape_str(s):

@@ -39,9 +39,15 @@ def _spline(ctx, p, n_inner):
 class Effect:
     name = ""
     per_run = False
+    temperature = False     # its shape is a law in temperature (needs a temperature span)
 
     def available(self, ctx, train, axis):
         return True, ""
+
+    def usable(self, ctx, train, axis):
+        if self.temperature and not ctx.temp_law:
+            return False, "the training temperature span is too narrow to identify any temperature law"
+        return self.available(ctx, train, axis)
 
     def shapes(self, ctx):
         return [None]
@@ -58,6 +64,7 @@ class Effect:
 
 class OffsetTemperature(Effect):
     name = "offset_temperature"
+    temperature = True
 
     def shapes(self, ctx):
         return [1, 2, 4, 7, 11]
@@ -68,6 +75,7 @@ class OffsetTemperature(Effect):
 
 class SensitivityTemperature(Effect):
     name = "sensitivity_temperature"
+    temperature = True
 
     def available(self, ctx, train, axis):
         if _levels(train.log.ref[:, axis]) < 2:
@@ -92,6 +100,7 @@ class Hysteresis(Effect):
     shapes (w, tau) use the first-order low pass of the reading with one of the time constants
     of the temp_rate shape chosen on that axis, so the two effects share one thermal picture."""
     name = "hysteresis"
+    temperature = True
 
     def shapes(self, ctx):
         span = max(ctx.tmax - ctx.tmin, 1.0)
@@ -119,6 +128,7 @@ class TempRate(Effect):
     follows the internal temperature too. (Squares of the slower D extrapolate badly onto a
     withheld programme while another effect is still missing, so they are left out.)"""
     name = "temp_rate"
+    temperature = True
     # Ratio of the two time constants: 3 rather than 4 because on the blind benchmark a
     # factor 4 left a lag-plus-hysteresis case 1.22x over the noise floor (3: 1.10x).
     LAG2 = 3.0
@@ -129,7 +139,7 @@ class TempRate(Effect):
 
     def shapes(self, ctx):
         lo = max(3 * ctx.dt, ctx.run_span / 2000)
-        return list(np.geomspace(lo, max(ctx.run_span / 8, 2 * lo), 7))
+        return list(np.geomspace(lo, max(ctx.run_span / 8, 2 * lo), 11))
 
     def columns(self, ctx, p, shape, axis):
         # On a staircase reading a short filter mostly sees the steps, not the lag; take the
@@ -269,6 +279,7 @@ class TurnOnBias(Effect):
 
 class TempQuantization(Effect):
     name = "temp_quantization"
+    temperature = True
 
     def available(self, ctx, train, axis):
         if F.quant_step(train.log) is None:

@@ -5,7 +5,8 @@ MODEL.json holds
   "device": the augmented model (the base re-fitted with the verdict's effects, and the effects
             as augment.py features and terms), in the integers a board reads (its "board" LSBs);
   "base":   the sim alone (the diagnosis' base_only fit), what `replay --base-only` runs;
-  "store":  the device model packed for the coefficient store (`python -m tools store put`);
+  "store":  the device model packed for the coefficient store (`python -m tools store put`),
+            "store_base" the same for the base (`put --base`);
   "on_device" / "not_on_device": which verdict effects the board applies, and why not the others;
   "host":   the diagnosis' own RMS on the withheld log (sim alone and augmented) to compare with
             a replay.
@@ -283,8 +284,9 @@ def pack(dev):
 
 def write(path, res, train_log, sensitivity=None):
     exp = build(res, train_log, sensitivity)
-    vals, fracs = pack(exp["device"])
-    exp["store"] = {"kind": "augment", "values": vals, "frac": fracs}
+    for key, dev in (("store", exp["device"]), ("store_base", exp["base"])):
+        vals, fracs = pack(dev)
+        exp[key] = {"kind": "augment", "values": vals, "frac": fracs}
     with open(path, "w") as f:
         json.dump(exp, f, indent=1)
     return exp

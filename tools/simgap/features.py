@@ -30,6 +30,9 @@ class Context:
             self.supply_std = float(np.std(train.supply)) or 1.0
         self.sensor = train.meta.get("sensor", "gyro").strip().lower()
         self.quantised = quant_step(train) is not None
+        from .coverage import SPAN_SLOPE, base_identified
+        self.base = base_identified(train)      # axis -> ([5 flags], [reasons])
+        self.temp_law = (self.tmax - self.tmin) >= SPAN_SLOPE
 
 
 class Prepared:
@@ -149,7 +152,20 @@ def unstair(p, smooth):
             # reading itself is the better guess there.
             est[a:b][ts < tc[0]] = Ts[ts < tc[0]]
             est[a:b][ts > tc[-1]] = Ts[ts > tc[-1]]
-            gaps.append(np.median(np.diff(tc)))
+            g = np.diff(tc)
+            g0 = float(np.median(g))
+            # A soak between two crossings: the true value sat somewhere inside one step for
+            # far longer than a ramp takes to cross it, so a straight line from crossing to
+            # crossing is wrong; hold the reading, easing from each crossing over one
+            # typical ramp gap.
+            for k in np.flatnonzero(g > 4 * g0):
+                sel = (ts > tc[k]) & (ts < tc[k + 1])
+                tt = ts[sel]
+                rd = Ts[sel]
+                w0 = np.clip(1 - (tt - tc[k]) / g0, 0, 1)
+                w1 = np.clip(1 - (tc[k + 1] - tt) / g0, 0, 1)
+                est[a:b][sel] = rd + (vc[k] - rd) * w0 + (vc[k + 1] - rd) * w1
+            gaps.append(g0)
     if smooth > 0 and gaps:
         dt = np.median(np.diff(t)) if len(t) > 1 else 1.0
         w = int(round(smooth * np.median(gaps) / max(dt, 1e-12)))

@@ -30,6 +30,27 @@ class Problem:
         self.fold_m = self.fold[m]
         self.runs_m = self.runs_t[m]
         self._idx = [np.flatnonzero(self.fold_m == f) for f in range(self.nfold)]
+        # A held-out segment scores only where the other segments have been: rows at a
+        # temperature (or input) only that segment reaches would judge extrapolation, and a
+        # shape that happens to bend the base model's extrapolation would read as an effect.
+        Tm, Rm = train.temp[m], train.ref[m]
+        keep = np.zeros(int(m.sum()), bool)
+        for f, i in enumerate(self._idx):
+            o = self.fold_m != f
+            if not o.any():
+                continue
+            lo, hi = Tm[o].min(), Tm[o].max()
+            tol = max(0.5, 0.02 * (hi - lo))
+            k = (Tm[i] >= lo - tol) & (Tm[i] <= hi + tol)
+            for a in range(3):
+                rlo, rhi = Rm[o, a].min(), Rm[o, a].max()
+                rt = 0.05 * max(rhi - rlo, 1e-12)
+                k &= (Rm[i, a] >= rlo - rt) & (Rm[i, a] <= rhi + rt)
+            keep[i] = k
+        if keep.sum() < 0.3 * keep.size:
+            keep[:] = True      # nothing inside: a plateau log; segments judge as they are
+        self.cv_keep = keep
+        self.cv_fold = self.fold_m[keep]
 
     def _target(self, p):
         if self.model is None:
@@ -71,7 +92,7 @@ class Problem:
                 # from the block's first samples of that run, as for a withheld log.
                 seen = np.isin(self.runs_m[i], self.runs_m[self.fold_m != f])
                 r_cv[i] = _startup_correct(r_cv[i], self.runs_m[i], ~seen)
-        out = {"cv": r_cv, "w": None}
+        out = {"cv": r_cv[self.cv_keep], "w": None}
         if withheld and self.withheld is not None:
             pw = self.withheld
             beta = _solve(G, b)
@@ -129,7 +150,11 @@ class Problem:
         k = 0
         base = None
         if self.model is None:
-            base, k = beta[:5], 5
+            keep = self.ctx.base[axis][0]
+            nb = int(sum(keep))
+            base = np.zeros(5)
+            base[np.flatnonzero(keep)] = beta[:nb]   # unidentified parameters stay 0
+            k = nb
         parts = []
         for name, shape in blocks:
             if BY_NAME[name].per_run:

@@ -52,4 +52,6 @@ def base_columns(ctx, log, axis):
     the solver scales each column, so its coefficients are the model's as they stand."""
     d = log.temp - ctx.t0
     r = log.ref[:, axis]
-    return np.column_stack([np.ones_like(d), d, d * d, r, r * d])
+    cols = np.column_stack([np.ones_like(d), d, d * d, r, r * d])
+    keep = getattr(ctx, "base", None)
+    return cols[:, keep[axis][0]] if keep is not None else cols

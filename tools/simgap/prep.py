@@ -4,7 +4,8 @@ import numpy as np
 from scipy.ndimage import median_filter
 
 SOAK_RATE = 0.05   # degC/min below which the part counts as soaking
-SPIKE_K = 8.0      # a sample this many noise sigmas off its local median is an outlier
+SPIKE_K = 12.0     # a sample this many robust noise sigmas off its local median is an outlier
+                   # (12, not 8: Student-t tails are noise the RMS must count, not spikes)
 
 
 def segments(log):
@@ -83,24 +84,76 @@ def _robust_sigma(v):
     return 1.4826 * np.median(np.abs(v - np.median(v)))
 
 
-def noise_floor(resid, log, mask=None):
-    """Per-axis white-noise sigma from first differences of a residual within segments.
+def output_step(log):
+    """Per axis, the output's quantisation step q (0 when the output is not on a grid): the
+    smallest spacing between distinct values, accepted when nearly every value is a whole
+    multiple of it (a log of 4 mg steps, or whole LSB)."""
+    q = np.zeros(3)
+    for a in range(3):
+        v = log.out[:, a]
+        u = np.unique(v)
+        if u.size < 3:
+            continue
+        gaps = np.diff(u)
+        step = float(np.percentile(gaps, 5))
+        if step <= 0 or step < 1e-9 * max(1.0, float(np.max(np.abs(u)))):
+            continue
+        k = (v - u[0]) / step
+        if np.mean(np.abs(k - np.round(k)) < 0.02) > 0.98:
+            q[a] = step
+    return q
 
-    Differencing removes any slow structure the model misses, so this is the floor a perfect
-    model could reach; the median absolute deviation keeps spikes and staircase steps out.
-    """
+
+def _steady_pairs(log, mask):
+    """Consecutive row pairs inside one contiguous stretch, both rows kept by the outlier rule,
+    with no change of any input (ref, acc, supply) between them: differences over these
+    pairs hold the noise and not the jumps a misfit makes at an input step."""
     n = len(log)
     ok = np.ones(n - 1, bool)
     seg = segments(log)
     ok[seg[1:] - 1] = False
     if mask is not None:
         ok &= mask[1:] & mask[:-1]
-    return np.array([_robust_sigma(np.diff(resid[:, a])[ok]) / np.sqrt(2) for a in range(3)])
+    for v in (log.ref, log.acc):
+        if v is not None:
+            ok &= ~np.any(np.diff(v, axis=0) != 0, axis=1)
+    if log.supply is not None:
+        dv = np.abs(np.diff(log.supply))
+        ok &= dv <= 5 * max(float(np.median(dv)), 1e-12)
+    if ok.sum() < 0.2 * (n - 1):
+        # Inputs change at almost every sample (a sweep): fall back to all pairs.
+        ok = np.ones(n - 1, bool)
+        ok[seg[1:] - 1] = False
+        if mask is not None:
+            ok &= mask[1:] & mask[:-1]
+    return ok
 
 
-def spikes(log):
-    """Rows where any axis jumps far from its local median (isolated outliers)."""
+def noise_floor(resid, log, mask=None, q=None):
+    """Per-axis white-noise sigma: RMS of first differences of a residual / sqrt 2, over the
+    rows the outlier rule keeps (the same rows the residual RMS uses, so a perfect model reads
+    1.0x) and only between samples with the same inputs.
+
+    Differencing removes whatever slow structure the model misses, so this is what a perfect
+    model could reach if the noise is white. An RMS, not a median, so heavy tails count as the
+    residual's RMS counts them; the outlier rule (spikes) has already taken the spikes out.
+    Never below q/sqrt(12) for an output quantised in steps of q."""
+    q = output_step(log) if q is None else q
+    ok = _steady_pairs(log, mask)
+    out = np.zeros(3)
+    for a in range(3):
+        d = np.diff(resid[:, a])[ok]
+        s = float(np.sqrt(np.mean(d * d) / 2)) if d.size else 0.0
+        out[a] = max(s, q[a] / np.sqrt(12))
+    return out
+
+
+def spikes(log, q=None):
+    """Rows where any axis jumps far from its local median (isolated outliers): more than
+    SPIKE_K robust noise sigmas, that sigma never below the quantisation floor q/sqrt(12) so a
+    quantised output (whose differences are mostly zero) does not lose half its rows."""
     n = len(log)
+    q = output_step(log) if q is None else q
     bad = np.zeros(n, bool)
     starts = list(segments(log)) + [n]
     d = log.temp - np.mean(log.temp)
@@ -113,10 +166,10 @@ def spikes(log):
         local = np.empty(n)
         for s, e in zip(starts[:-1], starts[1:]):
             local[s:e] = median_filter(y[s:e], size=min(9, max(1, e - s)), mode="mirror")
-        d = y - local
-        sig = _robust_sigma(np.diff(y)) / np.sqrt(2)
+        dev = y - local
+        sig = max(_robust_sigma(np.diff(y)) / np.sqrt(2), q[a] / np.sqrt(12))
         if sig > 0:
-            bad |= np.abs(d) > SPIKE_K * sig
+            bad |= np.abs(dev) > SPIKE_K * sig
     return bad
 
 

@@ -1,14 +1,16 @@
-"""Greedy choice of effects by how much each shrinks the held-out residual, with a block
-t-test for significance and a check on which candidates the data cannot tell apart."""
+"""Greedy choice of effects by how much each shrinks the residual on held-out segments of the
+training log (never the withheld log, which is scored once afterwards), significance counting
+the residual's autocorrelation, and a check on which candidates the data cannot tell apart."""
 import numpy as np
+from scipy import stats
 
-from .effects import EFFECTS
+from . import noise
+from .effects import BY_NAME, EFFECTS
 from .logio import AXES
 
-T_SIG = 2.0          # block t-statistic an improvement must reach (with the CV check below,
-                     # two independent held-out sets must agree)
-T_STRONG = 4.0       # withheld t-statistic that needs no support from the training segments
-Z_STRONG = 8.0       # white-noise z of the gain for effects living in a few stretches
+Z_SIG = 4.0          # z of the held-out gain (noise autocorrelation counted) an effect needs:
+                     # one-sided p 3e-5, since ~200 effect x axis x shape candidates are tried
+Z_REST = 2.0         # ... and without its best held-out segment the rest still z > 2
 MIN_REL = 0.01       # ... and the held-out sum of squares must drop by at least 1 %
 MIN_NOISE = 0.02     # ... and by at least 2 % of the noise variance (not a rounding win)
 RIVAL = 0.8          # a rival this close to the winner, absorbed by it, is not identifiable
@@ -36,18 +38,6 @@ def needs(a, b):
     return NEEDS.get(frozenset({a, b}), "an experiment that varies them independently")
 
 
-def block_t(d, nblocks=40):
-    """t-statistic of mean(d) from contiguous block means, so slowly varying residuals
-    (which are correlated sample to sample) are not counted as independent evidence."""
-    n = len(d)
-    B = max(2, min(nblocks, n // 25))
-    means = np.array([c.mean() for c in np.array_split(d, B)])
-    s = means.std(ddof=1)
-    if s == 0:
-        return np.inf if means.mean() > 0 else 0.0
-    return float(means.mean() / (s / np.sqrt(B)))
-
-
 def _same_shape(a, b):
     """Shapes are None, numbers, strings or tuples of them; a width and a (width, lag) pair
     must compare unequal rather than broadcast."""
@@ -64,14 +54,14 @@ class Greedy:
         self.prob = prob
         self.sigma = sigma                      # noise floor per axis of the scoring set
         self.state = {a: [] for a in range(3)}  # axis -> [(effect, shape)]
-        self.cur = {a: prob.evaluate(a, []) for a in range(3)}
+        self.cur = {a: prob.evaluate(a, [], withheld=False) for a in range(3)}
         self.steps = []
         self.untried = {}
         self.avail = {}
         for e in EFFECTS:
             ax = []
             for a in range(3):
-                ok, why = e.available(prob.ctx, prob.train, a)
+                ok, why = e.usable(prob.ctx, prob.train, a)
                 if ok:
                     ax.append(a)
                 else:
@@ -80,44 +70,65 @@ class Greedy:
                 self.avail[e.name] = ax
                 self.untried.pop(e.name, None)
 
-    def _score_set(self, res):
-        return res["w"] if res["w"] is not None else res["cv"]
-
     def _try(self, name, axis):
-        """Best shape of one effect on one axis (by training held-out error) and its
-        withheld improvement over the current state."""
+        """Best shape of one effect on one axis and its improvement on the training log's
+        held-out segments over the current state: both chosen and judged there only."""
         e = next(x for x in EFFECTS if x.name == name)
         best = None
         for shape in e.shapes_given(self.prob.ctx, self.state[axis]):
             res = self.prob.evaluate(axis, self.state[axis] + [(name, shape)], withheld=False)
             ss = float(np.sum(res["cv"] ** 2))
             if best is None or ss < best[0]:
-                best = (ss, shape)
-        shape = best[1]
-        res = self.prob.evaluate(axis, self.state[axis] + [(name, shape)])
-        r0, r1 = self._score_set(self.cur[axis]), self._score_set(res)
+                best = (ss, shape, res)
+        _, shape, res = best
+        return {"name": name, "shape": shape, "res": res}
+
+    def _judge(self, v, axis, tau, sd):
+        """Significance of one trial. The gain sum(r0^2 - r1^2) = sum(delta (2 r1 + delta)) is
+        random through the noise in r1: its variance is 4 sd^2 tau sum(delta^2), with sd and
+        tau (the integrated autocorrelation time) of the noise. Both come from the residual of
+        the saturated model (every candidate at once), so structure another effect will take
+        does not count as noise, while a random walk, flicker or an out-of-catalogue driver,
+        which no candidate predicts on held-out segments, gives a long tau and few
+        independent samples of evidence."""
+        r0, r1 = self.cur[axis]["cv"], v["res"]["cv"]
         ss0, ss1 = float(np.sum(r0 ** 2)), float(np.sum(r1 ** 2))
-        t = block_t(r0 ** 2 - r1 ** 2)
-        sig2 = self.sigma[axis] ** 2
-        cv_ok = True
-        if res["w"] is not None:
-            # With a withheld log the training segments should agree, not just that one log.
-            # They may not while a second effect is still missing (a per-run offset held out
-            # together with the unmodelled settling at the start of that run), so a strong
-            # withheld improvement stands on its own.
-            cv_ok = (np.sum(res["cv"] ** 2) < np.sum(self.cur[axis]["cv"] ** 2)
-                     or block_t(r0 ** 2 - r1 ** 2) > T_STRONG)
-        # A large gain concentrated in a few stretches (settling after power-on) has too few
-        # informative blocks for the block test; a white-noise z-test with a high bar takes
-        # it when the block test at least points the same way.
+        gain = r0 ** 2 - r1 ** 2
         delta = r0 - r1
-        z = (ss0 - ss1) / max(2 * self.sigma[axis] * np.sqrt(np.sum(delta ** 2)), 1e-300)
-        strong = z > Z_STRONG and t > 1.0 and ss0 - ss1 > 0.05 * ss0
-        significant = bool((t > T_SIG or strong) and ss0 - ss1 > MIN_REL * ss0
-                           and ss0 - ss1 > MIN_NOISE * len(r0) * sig2 and cv_ok)
-        return {"shape": shape, "res": res, "rms_before": float(np.sqrt(ss0 / len(r0))),
-                "rms_after": float(np.sqrt(ss1 / len(r1))), "t": t, "significant": significant,
-                "score": (ss0 - ss1) / max(sig2, 1e-300)}
+
+        def z_of(sel):
+            den = 2 * sd * np.sqrt(tau * float(np.sum(delta[sel] ** 2)))
+            return float(np.sum(gain[sel]) / den) if den > 0 else 0.0
+
+        z = z_of(slice(None))
+        # No single segment may carry the finding: with the segment that gains most left
+        # out, the rest must still point the same way. A base model that extrapolates badly
+        # into one segment, bent back by some shape there, gains in one place only.
+        folds = self.prob.cv_fold
+        fg = np.array([gain[folds == f].sum() for f in range(self.prob.nfold)])
+        rest = folds != int(np.argmax(fg))
+        z_rest = z_of(rest) if rest.any() else 0.0
+        sig2 = self.sigma[axis] ** 2
+        # (A per-run constant gains where a run's offset differs, run by run: its evidence
+        # comes in runs, not segments, so it is exempt.)
+        per_run = BY_NAME[v["name"]].per_run
+        significant = bool(z > Z_SIG and (z_rest > Z_REST or per_run) and ss0 - ss1 > MIN_REL * ss0
+                           and ss0 - ss1 > MIN_NOISE * len(r0) * sig2)
+        v.update(rms_before=float(np.sqrt(ss0 / len(r0))), rms_after=float(np.sqrt(ss1 / len(r1))),
+                 t=z, p=float(stats.norm.sf(z)), z_rest=z_rest, tau=tau,
+                 significant=significant, score=(ss0 - ss1) / max(sig2, 1e-300))
+        return v
+
+    def _noise(self, trials, axis):
+        """(sd, autocorrelation time) of the saturated model's residual on one axis."""
+        blocks = list(self.state[axis]) + [(n, tr[axis]["shape"]) for n, tr in trials.items()
+                                           if axis in tr]
+        # In-sample: the held-out residual of so many columns would carry their extrapolation
+        # errors, which are not noise either.
+        p = self.prob.train
+        r = self.prob.full_residual(p, axis, blocks)[p.mask]
+        r = r - np.mean(r)
+        return float(np.std(r)), noise.autocorr_time(r)
 
     def run(self):
         """Add the best significant effect (on the axes where it is significant) until none
@@ -127,6 +138,13 @@ class Greedy:
         self.record = {}          # (effect, axis) -> the trial that added it
         while True:
             trials = {n: {a: self._try(n, a) for a in ax} for n, ax in pool.items() if ax}
+            for a in range(3):
+                if not any(a in tr for tr in trials.values()):
+                    continue
+                sd, tau = self._noise(trials, a)
+                for tr in trials.values():
+                    if a in tr:
+                        self._judge(tr[a], a, tau, sd)
             scores = {n: sum(v["score"] for v in tr.values() if v["significant"])
                       for n, tr in trials.items()}
             sig = [n for n in trials if any(v["significant"] for v in trials[n].values())]
@@ -137,7 +155,9 @@ class Greedy:
             win = max(sig, key=lambda n: scores[n])
             step["chosen"] = win
             for a, v in trials[win].items():
-                if v["significant"]:
+                # A power-on shifts every axis at once: a per-run constant found on some axes
+                # is taken on every axis where it helps on the held-out segments at all.
+                if v["significant"] or (BY_NAME[win].per_run and v["score"] > 0):
                     self.state[a].append((win, v["shape"]))
                     self.cur[a] = v["res"]
                     self.record[(win, a)] = v
@@ -174,7 +194,7 @@ class Greedy:
                         changed = True
                 if not changed:
                     break
-            self.cur[a] = self.prob.evaluate(a, self.state[a])
+            self.cur[a] = self.prob.evaluate(a, self.state[a], withheld=False)
 
     def confusions(self):
         """Pairs the greedy path could not tell apart: at the step one was chosen, the other

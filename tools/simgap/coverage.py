@@ -1,0 +1,73 @@
+"""What each log covers and what the training log identifies, checked before anything is
+scored: a withheld log is evidence only where the training log has been (temperature, input),
+and a base-model parameter the training data cannot pin down is fixed, never left to a
+rank-deficient solve whose arbitrary split would later read as an "effect"."""
+import numpy as np
+
+from . import prep
+from .logio import AXES
+
+SPAN_SLOPE = 3.0     # degC of training temperature span below which no temperature law is
+                     # identified (a plateau): offset slope, curvature and sensitivity slope fixed
+SPAN_CURVE = 5.0     # degC below which the offset's curvature is fixed at 0 (slope only)
+COVER_TOL = 0.5      # degC (or 2 % of the span) a withheld temperature may lie outside training
+
+
+def _levels(v, rel=1e-3):
+    rng = np.ptp(v)
+    if rng == 0:
+        return 1
+    return len(np.unique(np.round(v / (rel * rng))))
+
+
+def describe(log):
+    """The coverage of one log, for the JSON and for the comparison."""
+    br = prep.branch(prep.temp_rate(log))
+    d = {"temp_c": [float(np.min(log.temp)), float(np.max(log.temp))],
+         "heating_rows": int(np.sum(br == "heating")), "cooling_rows": int(np.sum(br == "cooling")),
+         "soak_rows": int(np.sum(br == "soak")),
+         "input_levels": {AXES[a]: _levels(log.ref[:, a]) for a in range(3)},
+         "input_range": {AXES[a]: [float(np.min(log.ref[:, a])), float(np.max(log.ref[:, a]))]
+                         for a in range(3)},
+         "runs": int(len(np.unique(log.run))) if log.run is not None else 1,
+         "duration": float(log.t[-1] - log.t[0]) if log.run is None else
+         float(sum(np.ptp(log.t[log.run == r]) for r in np.unique(log.run)))}
+    g = log.acc if log.acc is not None else (log.ref if log.meta.get("sensor") == "accel" else None)
+    d["orientations"] = int(len(np.unique(np.round(g, 1), axis=0))) if g is not None else None
+    return d
+
+
+def covered(train, withheld):
+    """Rows of the withheld log inside the training log's temperature range and input range."""
+    lo, hi = float(np.min(train.temp)), float(np.max(train.temp))
+    tol = max(COVER_TOL, 0.02 * (hi - lo))
+    m = (withheld.temp >= lo - tol) & (withheld.temp <= hi + tol)
+    for a in range(3):
+        rlo, rhi = np.min(train.ref[:, a]), np.max(train.ref[:, a])
+        rt = 0.05 * max(rhi - rlo, 1e-3 * max(abs(rlo), abs(rhi), 1e-12))
+        m &= (withheld.ref[:, a] >= rlo - rt) & (withheld.ref[:, a] <= rhi + rt)
+    return m
+
+
+def base_identified(train):
+    """Per axis, which of the sim's five parameters (o0, o1, o2, s0, s1) the training log
+    identifies, with the reasons for those it does not."""
+    span = float(np.ptp(train.temp))
+    out = {}
+    for a in range(3):
+        keep = [True] * 5
+        why = []
+        if span < SPAN_SLOPE:
+            keep[1] = keep[2] = keep[4] = False
+            why.append(f"temperature spans {span:.2g} degC (< {SPAN_SLOPE:g}): no temperature law")
+        elif span < SPAN_CURVE:
+            keep[2] = False
+            why.append(f"temperature spans {span:.2g} degC (< {SPAN_CURVE:g}): curvature fixed at 0")
+        if _levels(train.ref[:, a]) < 2:
+            # One input level: the sensitivity cannot be told from the offset; the offset
+            # absorbs s0 * ref (exact for withheld rows at the same input, which coverage
+            # requires).
+            keep[3] = keep[4] = False
+            why.append("one input level: sensitivity not identified (folded into the offset)")
+        out[a] = (keep, why)
+    return out
