@@ -28,6 +28,7 @@ class VirtualBoard:
         self.lines = []
         self.port = None
         self.pty = None
+        self.repl_command = None  # the banner's "REPL: mpremote connect <tty> repl"
 
     def start(self):
         cmd = [NODE, str(SERVER), "--port", str(self.port_arg), "--flash", str(self.flash),
@@ -44,10 +45,11 @@ class VirtualBoard:
                 self.lines.append(line)
                 if "listening on socket://" in line:
                     self.port = int(line.rsplit(":", 1)[1])
-                    if "--pty" not in self.extra:
-                        ready.set()
                 if line.startswith("virtual board: pty "):
                     self.pty = line.split()[3]
+                if line.startswith("  REPL: "):
+                    self.repl_command = line[len("  REPL: "):].strip()
+                if line.startswith("  stop: "):  # the banner's last line
                     ready.set()
             ready.set()
 
