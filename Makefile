@@ -72,8 +72,9 @@ deploy: setup
 dist: setup
 	$(PY) -m tools dist dist
 
-# The virtual board: the MicroPython VM serving its REPL on 127.0.0.1:$(BOARD_TCP), flash kept in
-# build/vboard/flash/. `make board` runs it in the foreground; board-start/board-stop in the background.
+# The virtual board: the MicroPython VM serving its REPL on a pty (build/vboard/tty, for
+# `mpremote connect build/vboard/tty repl`) and on 127.0.0.1:$(BOARD_TCP) (exec, cp, mount), flash kept
+# in build/vboard/flash/. `make board` runs it in the foreground; board-start/board-stop in the background.
 board: setup
 	$(VBOARD) --port $(BOARD_TCP)
 

@@ -32,24 +32,10 @@ BUDGET_SESSION = 40 * 1024
 BUDGET_BOOT = 24 * 1024
 STORE_NAME = "tempcomp.cal"
 
-MODULES_ALL = (
-    "tempcomp",
-    "tempcomp.bus",
-    "tempcomp.fixedpoint",
-    "tempcomp.record",
-    "tempcomp.store",
-    "tempcomp.store_write",
-    "tempcomp.mpu6xxx_parts",
-    "tempcomp.mpu6xxx_tc",
-    "tempcomp.mpu6xxx",
-    "tempcomp.mpu6xxx_cal",
-    "tempcomp.adxrs",
-    "tempcomp.an12760",
-    "tempcomp.crossaxis",
-    "tempcomp.mlx90609",
-    "tempcomp.sensors",
-    "tempcomp.session",
-)
+def modules():
+    """Every on-device module, the package first."""
+    names = sorted(f[:-3] for f in os.listdir(os.path.join(LIB, "tempcomp")) if f.endswith(".py") and f != "__init__.py")
+    return ["tempcomp"] + ["tempcomp." + n for n in names]
 
 # Measures one import in a fresh interpreter; prints "RAM <bytes>" or "RAM MemoryError".
 _IMPORT = """
@@ -84,10 +70,11 @@ def i2c():
 """
 
 _BOOT_PREFIX = """
-import gc
-import ram_board
+import gc, sys
+{frozen}import ram_board
 gc.collect()
 a0 = gc.mem_alloc()
+try:
 """
 
 BOOT_SENSORS = """
@@ -112,9 +99,43 @@ imu.check(every_ms=1000)
 """
 
 _BOOT_SUFFIX = """
+    gc.collect()
+    print("RAM", gc.mem_alloc() - a0)
+    print("READ", buf)
+except MemoryError:
+    print("RAM MemoryError")
+"""
+
+# The driver's boot path step by step: what each import and each object keeps (cumulative).
+BOOT_STEPS = """
+import gc, sys
+import ram_board
 gc.collect()
-print("RAM", gc.mem_alloc() - a0)
-print("READ", buf)
+a0 = gc.mem_alloc()
+def step(n):
+    gc.collect()
+    print("STEP", n, gc.mem_alloc() - a0)
+import tempcomp.sensors
+step("import tempcomp.sensors")
+import tempcomp.store
+step("+ import tempcomp.store")
+import tempcomp.mpu6xxx
+step("+ import tempcomp.mpu6xxx (bus, parts table)")
+import tempcomp.fixedpoint
+step("+ import tempcomp.fixedpoint")
+import tempcomp.mpu6xxx_tc
+step("+ import tempcomp.mpu6xxx_tc")
+st = tempcomp.store.Store("/ram/{store}")
+st.names()
+imu = tempcomp.mpu6xxx.MPU6xxx(ram_board.i2c())
+imu.restore(st)
+step("+ read the store, MPU6xxx(i2c), restore(store)")
+model = tempcomp.mpu6xxx_tc.BiasModel.from_ints(st.load("mpu_tc"))
+step("+ BiasModel.from_ints")
+imu.compensate(model)
+buf = [0] * 7
+imu.read_compensated(buf)
+step("+ compensate(model), read_compensated")
 """
 
 SEED = 7
@@ -184,15 +205,33 @@ def _run(it, code, staged):
     return it.run(code, mounts=(staged + ":/ram",), paths=("/ram",))
 
 
-def measure_import(it, staged, mod):
+_FROZEN = "sys.path.insert(0, '.frozen')\n"
+
+
+def measure_import(it, staged, mod, frozen=False):
     """Heap bytes ``import mod`` keeps (None: MemoryError), on a freshly reset board."""
-    return _ram(_run(it, _IMPORT.format(mod=mod), staged))
+    pre = "import sys\n" + _FROZEN if frozen else ""
+    return _ram(_run(it, pre + _IMPORT.format(mod=mod), staged))
 
 
-def measure_boot(it, staged, body):
+def measure_boot(it, staged, body, frozen=False):
     """(heap bytes the boot path keeps, its output) on a freshly reset board."""
-    out = _run(it, _BOOT_PREFIX + body.format(store="/ram/" + STORE_NAME) + _BOOT_SUFFIX, staged)
+    code = body.format(store="/ram/" + STORE_NAME)
+    code = "".join("    " + ln + "\n" for ln in code.strip().splitlines())
+    out = _run(it, _BOOT_PREFIX.format(frozen=_FROZEN if frozen else "") + code + _BOOT_SUFFIX, staged)
     return _ram(out), out
+
+
+def frozen_firmware():
+    """build/fw-frozen/an385/firmware.elf, (re)built by tools/board/freeze.py when lib/ is newer."""
+    from tools.board import freeze
+
+    out = os.path.join(REPO, "build", "fw-frozen")
+    elf = os.path.join(out, "an385", "firmware.elf")
+    newest = max(os.path.getmtime(os.path.join(LIB, "tempcomp", f)) for f in os.listdir(os.path.join(LIB, "tempcomp")))
+    if not os.path.exists(elf) or os.path.getmtime(elf) < max(newest, os.path.getmtime(freeze.MANIFEST)):
+        freeze.build(out)
+    return out
 
 
 def mpy_tree():
@@ -207,7 +246,7 @@ def _kb(v):
     return "MemoryError" if v is None else "%.1f KB" % (v / 1024.0)
 
 
-def bench(report, imports=True):
+def bench(report, imports=True, frozen=True):
     from tools.firmware.interp import missing, open_interp
 
     why = missing("an385")
@@ -218,26 +257,44 @@ def bench(report, imports=True):
     staged = [stage(LIB), stage(mpy)]
     it = open_interp("an385")
     try:
-        for mod in MODULES_ALL if imports else ():
-            src = os.path.join(LIB, *mod.split(".")) + ".py"
-            if not os.path.exists(src) and not os.path.isdir(src[:-3]):
-                continue
+        for mod in modules() if imports else ():
             py = measure_import(it, staged[0], mod)
             mp = measure_import(it, staged[1], mod)
             report("AN385 heap after `import %s`: .py / .mpy" % mod, "%s / %s" % (_kb(py), _kb(mp)), "")
-        ses = measure_import(it, staged[1], "tempcomp.session")
-        report("AN385 `import tempcomp.session` from .mpy (budget %d KB)" % (BUDGET_SESSION // 1024),
-               "%s (%s)" % (_kb(ses), "ok" if ses is not None and ses <= BUDGET_SESSION else "OVER"), "")
-        for label, body in (("sensors.restore(board, which=mpu6xxx)", BOOT_SENSORS),
-                            ("MPU6xxx.restore + compensate", BOOT_DRIVER)):
-            v, _ = measure_boot(it, staged[1], body)
-            report("AN385 boot path from .mpy, %s + read_compensated (budget %d KB)"
-                   % (label, BUDGET_BOOT // 1024),
-                   "%s (%s)" % (_kb(v), "ok" if v is not None and v <= BUDGET_BOOT else "OVER"), "")
+        _budgets(report, it, staged[1], ".mpy")
+        out = _run(it, BOOT_STEPS.format(store=STORE_NAME), staged[1])
+        for line in out.splitlines():
+            if line.startswith("STEP "):
+                name, v = line[5:].rsplit(" ", 1)
+                report("AN385 boot path from .mpy, cumulative: %s" % name, _kb(int(v)), "")
     finally:
         it.close()
-        for d in staged + [mpy]:
-            shutil.rmtree(d, ignore_errors=True)
+    if frozen:
+        from tools.firmware import interp
+
+        saved = interp.FW_DIR
+        try:
+            interp.FW_DIR = frozen_firmware()
+            it = open_interp("an385")
+        finally:
+            interp.FW_DIR = saved
+        try:
+            _budgets(report, it, staged[1], "frozen firmware (tools freeze)", frozen=True)
+        finally:
+            it.close()
+    for d in staged + [mpy]:
+        shutil.rmtree(d, ignore_errors=True)
+
+
+def _budgets(report, it, staged, how, frozen=False):
+    ses = measure_import(it, staged, "tempcomp.session", frozen)
+    report("AN385 `import tempcomp.session` from %s (budget %d KB)" % (how, BUDGET_SESSION // 1024),
+           "%s (%s)" % (_kb(ses), "ok" if ses is not None and ses <= BUDGET_SESSION else "OVER"), "")
+    for label, body in (("sensors.restore(board, which=mpu6xxx)", BOOT_SENSORS),
+                        ("MPU6xxx.restore + compensate", BOOT_DRIVER)):
+        v, _ = measure_boot(it, staged, body, frozen)
+        report("AN385 boot path from %s: %s + read_compensated (budget %d KB)" % (how, label, BUDGET_BOOT // 1024),
+               "%s (%s)" % (_kb(v), "ok" if v is not None and v <= BUDGET_BOOT else "OVER"), "")
 
 
 if __name__ == "__main__":

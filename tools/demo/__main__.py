@@ -30,7 +30,10 @@ from tools.board.boardctl import BoardError, Remote, VirtualBoard  # noqa: E402
 OUT = os.path.join(REPO, "out")
 TIME_SCALE = 4  # simulated seconds per second: the thermal steps pass four times faster
 ROOM_C = 20.0
-HEAT = [(0, ROOM_C), (2, ROOM_C), (32, 50.0)]  # the session's heater, from when it is switched on
+# the session's heater, from when it is switched on; board seconds (x4), which pass with what the
+# board does (bus transfers, sleeps), not with the host's clock: the first point's captures
+# (about 3 s of them) are over before it warms
+HEAT = [(0, ROOM_C), (6, ROOM_C), (36, 50.0)]
 SWEEP = [(0, ROOM_C), (2, ROOM_C), (22, 48.0), (26, 48.0), (46, ROOM_C)]  # the chamber afterwards
 SWEEP_S = 46
 SPIN_DPS = 20.0  # the turntable during the sweep: about z, the MLX90609's and analog gyro's axis
@@ -83,7 +86,7 @@ s.show()
 """
 
 SWEEP_VIRTUAL = r"""
-import tempcomp_board, vboard_sensors, vboard
+import time, tempcomp_board, vboard_sensors, vboard
 from tempcomp.session import restore
 s = restore(tempcomp_board, verbose=False)
 w = vboard_sensors.world
@@ -94,6 +97,7 @@ clock = vboard.board.clock_ms
 t0 = clock()
 while clock() - t0 < %(secs)d * 1000:
     r = s.read(8)
+    time.sleep_ms(40)  # a reading every 40 ms of board time (160 ms of the chamber's, x4)
     print("ROW", repr(((clock() - t0) / 1000, w.temperature_c(), r)))
 """
 
@@ -278,6 +282,8 @@ def main(argv=None):
                 port, "1.27", os.path.relpath(vb.flash, REPO)))
             say("  sensors: MPU-6500 on I2C0, MLX90609 on SPI0 (CS GP17), analog gyro on ADC 26/27;"
                 " time runs x%d" % TIME_SCALE)
+            say("  scenario: a steady %g degC room (VBOARD_PROFILE), then the session's heater and the"
+                " sweep's chamber" % ROOM_C)
             done.append("started the virtual board (%s)" % port)
         else:
             port = a.port
