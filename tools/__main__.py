@@ -12,7 +12,7 @@ from tools import REPO
 
 # name: (module whose main(argv) runs it, one line, an example)
 COMMANDS = {
-    "fit": ("tools.fit.__main__", "fit coefficients from a chamber CSV (an12760, adxrs, sixpos)",
+    "fit": ("tools.fit.__main__", "fit coefficients from a chamber CSV, or a fleet of units (an12760, adxrs, sixpos)",
             "python -m tools fit an12760 cal/accel_x.csv --json cal/accel_x.json"),
     "gap": ("tools.simgap.__main__", "sim-to-real gap diagnosis of a temperature log",
             "python -m tools gap train.csv --withheld held.csv --json out/gap.json --plot out/gap.png"),
