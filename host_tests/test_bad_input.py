@@ -505,3 +505,15 @@ def test_adxrs_output_that_does_not_follow_the_rate(out_mv, says, tmp_path, caps
     rc, out, err = run_front_door(["fit", "adxrs", str(f), "--json", str(o)], capsys)
     assert rc == 2 and says in err and str(f) in err and err.count("\n") == 1, err
     assert not o.exists()
+
+
+@pytest.mark.parametrize("argv", [
+    ["mpy", "{afile}/sub"],
+    ["dist", "{afile}/sub"],
+    ["gap-check", "--small", "--keep", "{afile}/sub"],
+])
+def test_commands_that_only_write_name_the_path_they_cannot_write(argv, tmp_path, capsys):
+    (tmp_path / "afile").write_text("a plain file, not a directory\n")
+    argv = [a.format(afile=tmp_path / "afile") for a in argv]
+    rc, out, err = run_front_door(argv, capsys)
+    assert rc == 2 and err.count("\n") == 1 and err.startswith("error: ") and str(tmp_path / "afile") in err, err

@@ -75,6 +75,14 @@ def main(argv=None):
         return mod.main(rest)
     except SystemExit as e:  # argparse's --help and usage errors
         return e.code if isinstance(e.code, int) else (0 if e.code is None else 2)
+    except OSError as e:
+        # a file or directory the command could not read or write (an output under a plain
+        # file, a full disk, no permission): one line naming it, like every other bad input
+        if e.filename is None:
+            raise
+        from tools import hostio
+
+        return hostio.fail("%s: %s" % (e.filename, e.strerror or e))
 
 
 if __name__ == "__main__":
