@@ -179,7 +179,8 @@ def build(res, train_log, sensitivity=None):
     for group in (aug, base):
         for i, a in enumerate(axes):
             ax = group[a]
-            if np.ptp(train_log.ref[:, i]) == 0 or not _s0(ax) > 0:
+            ident = (mod["axes"][a].get("identified") or {}).get("sensitivity", [True])[0]
+            if np.ptp(train_log.ref[:, i]) == 0 or not ident or not _s0(ax) > 0:
                 nominal = sensitivity or ratio
                 if nominal is None:
                     raise ExportError("axis %s: the log never moves the input, so the sensitivity is "
