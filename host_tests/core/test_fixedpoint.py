@@ -56,7 +56,7 @@ def test_div_pow2_is_exact_floor_within_bounds():
 
 
 def _bounded(comp):
-    bind(comp, ["_gh", "_gl", "_b", "_s", "_half", "_mid", "_eo", "_eg", "_k", "_kmask"])
+    bind(comp, ["_gh", "_gl", "_b", "_s", "_half", "_mid", "_eo", "_eg", "_k", "_kmask", "_fq", "_fs"])
     if comp._p3 is not None:
         bind(comp, ["_p3"])
     for p in comp._sc + comp._off:
