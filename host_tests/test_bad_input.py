@@ -517,3 +517,45 @@ def test_commands_that_only_write_name_the_path_they_cannot_write(argv, tmp_path
     argv = [a.format(afile=tmp_path / "afile") for a in argv]
     rc, out, err = run_front_door(argv, capsys)
     assert rc == 2 and err.count("\n") == 1 and err.startswith("error: ") and str(tmp_path / "afile") in err, err
+
+
+@pytest.fixture(scope="module")
+def exported(tmp_path_factory):
+    """A log and the model `gap --export` wrote for it; replay runs on them (in the real VM)."""
+    d = tmp_path_factory.mktemp("replay")
+    _gap_log(d / "log.csv")
+    assert front_door(["gap", str(d / "log.csv"), "--json", str(d / "gap.json"), "--quiet",
+                       "--export", str(d / "model.json")]) == 0
+    assert front_door(["replay", str(d / "model.json"), str(d / "log.csv"), "--json", str(d / "r.json")]) == 0
+    _strict((d / "r.json").read_text())
+    return d
+
+
+# damage that can never leave a usable file (replay's valid runs are slow: the VM replays the log)
+REPLAY_LOG = [(k, s) for k in ("delete_cell", "big", "nan", "nul", "latin1") for s in SEEDS] + \
+    [(k, 0) for k in ("utf16", "garbage", "empty", "header_only")]
+REPLAY_MODEL = [(k, 0) for k in ("utf16", "garbage", "empty", "nul")] + [("cut", s) for s in SEEDS] + \
+    [("list", 0), ("number", 0), ("no-device", 0)]
+
+
+@pytest.mark.parametrize("which,kind,seed", [("log",) + c for c in REPLAY_LOG] + [("model",) + c for c in REPLAY_MODEL])
+def test_replay_damaged_input(which, kind, seed, exported, tmp_path, capsys):
+    log, model = tmp_path / "log.csv", tmp_path / "model.json"
+    log.write_bytes((exported / "log.csv").read_bytes())
+    model.write_bytes((exported / "model.json").read_bytes())
+    f = log if which == "log" else model
+    rng = random.Random(seed * 31 + len(kind))
+    if kind == "cut":
+        b = f.read_bytes()
+        f.write_bytes(b[:rng.randrange(1, len(b) - 3)])
+    elif kind in ("list", "number", "no-device"):
+        f.write_text({"list": "[1, 2]", "number": "7", "no-device": '{"t0_c": 25}'}[kind])
+    elif kind == "nul" and which == "model":
+        b = f.read_bytes()
+        f.write_bytes(b[:5] + b"\x00" + b[5:])
+    else:
+        f.write_bytes(damage(kind, f.read_bytes(), rng)[0])
+    o = tmp_path / "r.json"
+    rc, out, err = run_front_door(["replay", str(model), str(log), "--json", str(o)], capsys)
+    check_outcome(rc, out, err, f, [o], need_line=which == "log" and kind not in ("garbage", "empty", "header_only"))
+    assert rc == 2

@@ -11,7 +11,6 @@ LSBs give, and writes
 MODEL.json is what `python -m tools.simgap ... --export MODEL.json` wrote: "device" is the
 augmented model, "base" the sim alone (`--base-only`). A model JSON holding just a device
 model (augment.py's dict) works too."""
-import argparse
 import base64
 import json
 import os
@@ -20,6 +19,7 @@ import tempfile
 
 import numpy as np
 
+from tools import hostio
 from tools.firmware import mpvm
 
 from . import devmodel
@@ -176,13 +176,10 @@ def run_device(dev, inp, timeout=None):
 
 def load_model(path):
     try:
-        with open(path) as f:
-            d = json.load(f)
-    except OSError as e:
-        raise LogError("%s: cannot read model: %s" % (path, e.strerror)) from None
-    except json.JSONDecodeError as e:
-        raise LogError("%s: line %d: not JSON: %s" % (path, e.lineno, e.msg)) from None
-    if "device" not in d and "t_lsb" not in d:
+        d = hostio.load_json(path)
+    except hostio.HostError as e:
+        raise LogError(str(e)) from None
+    if not isinstance(d, dict) or ("device" not in d and "t_lsb" not in d):
         raise LogError("%s: not an exported model (no 'device' section; write one with "
                        "python -m tools gap ... --export %s)" % (path, path))
     return d
@@ -216,7 +213,7 @@ def replay(model, log, base_only=False):
 
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(prog="python -m tools.simgap.replay",
+    ap = hostio.Parser(prog="python -m tools.simgap.replay",
                                  description="Run the on-device compensation over a log in the real "
                                              "MicroPython VM and report the RMS error per axis.")
     ap.add_argument("model", help="MODEL.json written by --export")
@@ -225,14 +222,22 @@ def main(argv=None):
     ap.add_argument("--base-only", action="store_true", help="apply the base model alone")
     a = ap.parse_args(argv)
     try:
+        hostio.check_output(a.json, "JSON")
         model = load_model(a.model)
         log = read_log(a.log)
+    except (LogError, hostio.HostError) as e:
+        return hostio.fail(e)
+    try:
         res, _ = replay(model, log, a.base_only)
     except (LogError, ReplayError, ValueError) as e:
-        print("error: %s" % e, file=sys.stderr)
-        return 2
-    with open(a.json, "w") as f:
-        json.dump(res, f, indent=1)
+        return hostio.fail(e)
+    except (KeyError, TypeError, IndexError) as e:  # a model file edited or cut by hand
+        return hostio.fail("%s: not a usable exported model (%s %s); write it again with python -m tools gap "
+                           "... --export" % (a.model, type(e).__name__, e))
+    try:
+        hostio.write_all([(a.json, hostio.dumps(res, indent=1))])
+    except hostio.HostError as e:
+        return hostio.fail(e)
     print("%s model on %s (%d rows): RMS %s %s; %s bytes allocated per sample%s" % (
         res["model"], a.log, res["rows"],
         " ".join("%s %.4g" % (k, v) for k, v in res["rms"].items()), res["unit"],
