@@ -15,7 +15,8 @@ def board_inputs(m, log, uptime0_s=0.0):
     t = np.round((log.temp - m.get("t_off", 0.0)) / m["t_lsb"]).astype(np.int64)
     raw = np.round(log.out / m.get("raw_lsb", 1.0)).astype(np.int64)
     lo, hi = m.get("raw_range", (-32768, 32767))
-    raw = np.clip(raw, lo, hi)
+    clipped = int(np.sum((raw < lo) | (raw > hi)))
+    raw = np.clip(raw, lo, hi)  # a board's ADC saturates there too; counted
     ms = np.round((log.t - log.t[0]) * 1000.0).astype(np.int64)
     dt = np.r_[0, np.diff(ms)]
     # a new run, or the clock starting again, is a power-on for the board: it starts afresh
@@ -30,7 +31,8 @@ def board_inputs(m, log, uptime0_s=0.0):
     if log.acc is not None:
         acc = np.round(log.acc / m.get("acc_lsb", 0.001)).astype(np.int64)
     return {"t": t, "raw": raw, "dt_ms": dt, "supply": sup, "acc": acc,
-            "uptime0_ms": int(round(uptime0_s * 1000.0)), "starts": np.flatnonzero(new)}
+            "uptime0_ms": int(round(uptime0_s * 1000.0)), "starts": np.flatnonzero(new),
+            "raw_clipped": clipped}
 
 
 def temperature(m, t):

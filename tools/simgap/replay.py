@@ -205,6 +205,7 @@ def replay(model, log, base_only=False):
     res = {"rms": rms, "unit": log.meta.get("ref_unit", "ref unit"), "rows": len(log),
            "allocated_per_sample": info.get("allocated_per_sample"),
            "heap_locked": info["heap_locked"], "clamped": info.get("clamped", 0),
+           "raw_clipped": inp["raw_clipped"], "power_ons": info.get("power_ons", 0),
            "model": "base" if base_only else "augmented"}
     if "lock_error" in info:
         res["lock_error"] = info["lock_error"]
