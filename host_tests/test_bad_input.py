@@ -559,3 +559,25 @@ def test_replay_damaged_input(which, kind, seed, exported, tmp_path, capsys):
     rc, out, err = run_front_door(["replay", str(model), str(log), "--json", str(o)], capsys)
     check_outcome(rc, out, err, f, [o], need_line=which == "log" and kind not in ("garbage", "empty", "header_only"))
     assert rc == 2
+
+
+@pytest.mark.parametrize("model,says", [
+    (b"", "not valid JSON"),
+    (b"\xff\xfe{", "not UTF-8"),
+    (b"[1, 2]", "no 'store' section"),
+    (b'{"store": {"values": [1, 2]}}', "no 'store' section"),
+    (b'{"store": {"values": [1, 2], "frac": [0, 99]}}', "frac[1] = 99"),
+    (b'{"store": {"values": [1.5], "frac": [0]}}', "not an integer"),
+    (b'{"store": {"values": "abc", "frac": [0]}}', "values must be a list"),
+])
+def test_store_put_refuses_a_bad_model(model, says, tmp_path, capsys):
+    from tempcomp.store import Store
+
+    p = str(tmp_path / "cal.bin")
+    Store(p).save("gyro", (1, 2, 3))
+    before = open(p, "rb").read()
+    m = tmp_path / "model.json"
+    m.write_bytes(model)
+    rc, out, err = run_front_door(["store", "put", p, str(m), "--name", "aug"], capsys)
+    assert rc == 2 and err.count("\n") == 1 and says in err and str(m) in err, err
+    assert open(p, "rb").read() == before  # the store is unchanged
