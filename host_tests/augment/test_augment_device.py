@@ -99,3 +99,20 @@ def test_bad_models_are_refused_by_name(change, words):
     m.update(change)
     with pytest.raises(ValueError, match=words):
         augment.Augmented(m)
+
+
+def test_a_power_on_mid_log_restarts_filters_and_uptime_like_the_reference():
+    m = every_term_model()
+    inp, _ = inputs(m, n=1200, seed=9)
+    inp["starts"] = np.array([700])
+    inp["dt_ms"][700] = 0
+    F = devmodel.features(m, inp)
+    assert F[700, 6] == 0 and F[699, 6] > 600  # uptime back to 0 at the power-on
+    out, info = replay.run_device(m, inp)
+    assert info["heap_locked"] and info["power_ons"] == 1
+    err = np.abs(out - devmodel.compensate(m, inp, F) * OUT_SCALE)
+    assert err.max() <= 1.5
+    # without the power-on the board's filters would carry on: the outputs differ after it
+    inp2 = dict(inp, starts=np.array([], int))
+    out2, _ = replay.run_device(m, inp2)
+    assert np.array_equal(out2[:700], out[:700]) and not np.array_equal(out2[700:], out[700:])

@@ -45,12 +45,30 @@ def locked(lo, hi):
     return err
 run(0, 2)
 print('LOCK', 'ok' if locked(2, len(ROWS)) is None else 'FAIL')
+def ticked(n):
+    # dt from the port's own ms clock (dt_ms=-1)
+    i = 0
+    while i < n:
+        ap(2500, raw, out, -1, 3300, acc)
+        i += 1
+def ticked_locked():
+    err = None
+    micropython.heap_lock()
+    try:
+        ticked(20)
+    except MemoryError as e:
+        err = e
+    micropython.heap_unlock()
+    return err
+ticked(2)
+print('TICKS', 'ok' if ticked_locked() is None else 'FAIL')
 i = 0
 while i < len(res):
     print('RES', res[i], res[i + 1], res[i + 2])
     i += 3
 """ % (json.dumps(m), json.dumps(rows)), timeout=600)
     assert "LOCK ok" in out.splitlines()
+    assert "TICKS ok" in out.splitlines()
     y = np.array([ln.split()[1:] for ln in out.splitlines() if ln.startswith("RES ")], dtype=float)
     assert y.shape == (N, 3)
     want = devmodel.compensate(m, inp, F) * OUT_SCALE

@@ -459,22 +459,12 @@ class MPU6xxx:
         """Hardware offset(T): re-write the offsets when the temperature moved by step_c100.
 
         Call it periodically with the part awake (asleep, TEMP_OUT does not update); returns
-        True when it wrote (verified, all-or-nothing).
+        True when it wrote (verified, all-or-nothing). (Code in tempcomp.mpu6xxx_tc, the
+        module of ``model``.)
         """
-        if self._dev.read_u8(_USER_CTRL + 1) & 0x40:
-            raise MPUError("the part is asleep (PWR_MGMT_1.SLEEP): its temperature is stale")
-        t = self.temp_raw()
-        step = step_c100 * self._row[TEMP_SENS] // 10000
-        last = self._follow_t
-        if last is not None and abs(t - last) < step:
-            return False
-        g, a = model.targets(t)
-        self.apply(
-            [_clamp_gyro(k, g[k]) for k in range(3)],
-            [_clamp_accel15(k, a[k] >> 1) * 2 for k in range(3)],
-        )
-        self._follow_t = t
-        return True
+        from tempcomp.mpu6xxx_tc import follow
+
+        return follow(self, model, step_c100)
 
     # ---- persistence --------------------------------------------------------------------------
     def to_ints(self):

@@ -181,3 +181,25 @@ class BiasModel:
             r = ints[1 + 7 * i : 8 + 7 * i]
             pts.append((r[0], tuple(v / _FRAC for v in r[1:4]), tuple(v / _FRAC for v in r[4:7])))
         return cls(pts, policy)
+
+
+def follow(imu, model, step_c100=50):
+    # MPU6xxx.follow(): here, beside the model it needs, so a boot that never follows the
+    # temperature in hardware does not load it (docs/ram.md)
+    from tempcomp.mpu6xxx import MPUError, _clamp_accel15, _clamp_gyro
+    from tempcomp.mpu6xxx_parts import TEMP_SENS
+
+    if imu._dev.read_u8(0x6B) & 0x40:  # PWR_MGMT_1.SLEEP (RM-MPU-6000A 4.28)
+        raise MPUError("the part is asleep (PWR_MGMT_1.SLEEP): its temperature is stale")
+    t = imu.temp_raw()
+    step = step_c100 * imu._row[TEMP_SENS] // 10000
+    last = imu._follow_t
+    if last is not None and abs(t - last) < step:
+        return False
+    g, a = model.targets(t)
+    imu.apply(
+        [_clamp_gyro(k, g[k]) for k in range(3)],
+        [_clamp_accel15(k, a[k] >> 1) * 2 for k in range(3)],
+    )
+    imu._follow_t = t
+    return True
