@@ -98,3 +98,17 @@ def test_replay_refuses_what_is_not_a_model(tmp_path):
                         str(tmp_path / "o.json")], cwd=REPO, capture_output=True, text=True, timeout=120)
     assert r.returncode == 2
     assert r.stderr.count("\n") == 1 and "not an exported model" in r.stderr
+
+
+def test_an_axis_whose_input_never_moves_gets_a_nominal_sensitivity_and_the_right_offset():
+    # z held at -60 dps all along: offset and sensitivity are one number there; the export takes
+    # the unit ratio (here --sensitivity) and must leave the board reading -60, not 0
+    tr = augsynth.make("hysteresis", still=2)
+    wh = augsynth.make("hysteresis", withheld=True, still=2)
+    res, _ = diagnose(tr, wh)
+    exp = export.build(res, tr, sensitivity=float(augsynth.SENS[2]))
+    assert any("axis z: sensitivity not identified" in n for n in exp["notes"])
+    base, y = replay.replay(exp, wh, base_only=True)
+    h = exp["host"]["rms"]["base_only"]["z"]
+    assert abs(np.mean(y[:, 2]) + 60.0) < 0.5
+    assert abs(base["rms"]["z"] * augsynth.SENS[2] - h) <= 0.05 * h + 0.1

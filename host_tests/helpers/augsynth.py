@@ -43,13 +43,16 @@ def _play(x, w):
     return out
 
 
-def make(effect, withheld=False, n=3000, dt=2.0, seed=0, sigma=1.5):
-    """(Log, truth) with the effect on axis x (and on the others where it is a cross effect)."""
+def make(effect, withheld=False, n=3000, dt=2.0, seed=0, sigma=1.5, still=None):
+    """A Log with the effect on axis x (and on the others where it is a cross effect); still=k
+    holds axis k's input at -60 dps throughout (like gravity on an accelerometer's axis)."""
     seed = seed * 2 + int(withheld) + 10 * EFFECTS.index(effect)
     rng = np.random.default_rng(seed)
     t, T = _profile(n, dt, seed, withheld)
     levels = np.array([-200, -60, 0, 60, 200.0])
     ref = np.column_stack([np.repeat(rng.choice(levels, n // 40 + 1), 40)[:n] for _ in range(3)])
+    if still is not None:
+        ref[:, still] = -60.0
     Tc = T
     if effect == "temp_rate":
         Tc = _lowpass(T, dt, 150.0)  # the die lags the reading

@@ -64,6 +64,9 @@ _SPAN_LIMIT = const(65535)  # t and raw ranges: half-span <= 2**15 keeps |x| lim
 _SCALE_RATIO = const(2)  # scale may vary at most 2x over the input range
 _EXT = const(14)  # extra fraction bits of eval_ext(): the scale's rounding, 2**-27 -> 2**-41
 _EXT_MASK = const(0x3FFF)
+_WIDE = const(7)  # update()'s quick division: by the top 20 of the scale value's 27 bits
+_WIDE_MASK = const(0x7F)
+_GAIN_NUM = const(1 << 28)
 
 
 def mul_shift(a, x, h):
@@ -445,6 +448,14 @@ class Compensator:
         self._eo = [0] * n
         # G = gain * 2**(K+S) = 2**(K+S+Fs) / D, with one extra bit for rounding
         self._eg = [K + S + sp.frac + 1 for sp in scs]
+        # update()'s quick division needs the scale value d >= 2**24 over the whole range and
+        # 2**eg / 2**28 / 2**_WIDE >= 1; -1: the plain 3-bit long division
+        self._wg = [-1] * n
+        for k in range(n):
+            sp = scs[k]
+            if sp.extrema()[0] * _pow2(sp.frac) >= _pow2(24) * 1.01:
+                if self._eg[k] - 28 - _WIDE >= 0:
+                    self._wg[k] = self._eg[k] - 28 - _WIDE
         for k in range(n):
             self._set_offset(k, offs[k], ev, t_ref, "offset[%d]" % k)
         self._gh = [0] * n
@@ -578,17 +589,33 @@ class Compensator:
             # the scale is d + e / 2**14: 2**e/(d + e') = q * (1 - e'/d + ...) with q = 2**e/d,
             # so the quotients below drop q * e / (2**14 * d) (at most 2**29 * 2**14 / 2**14 /
             # 2**24 = 32 units; the second-order term is below 2**-18 units)
-            g = _gain_num(self._eg[k], d)  # < 2**29
-            if e:
-                g -= mul_shift(g, e, _EXT) // d  # mul_shift: 2**29 * 2**14 / 2**14 < 2**30
+            o = self._off[k].eval(t)
+            wg = self._wg[k]
+            wo = self._eo[k] - _WIDE
+            if wg >= 0 and wo >= 0:
+                # d >= 2**24 here (set-up): divide by its top 20 bits dh in 10-bit steps and
+                # correct for the rest, f / 2**21 of a unit of dh, as for e above (first order:
+                # the second-order term is below 2**29 / 2**34 units)
+                dh = d >> _WIDE
+                f = ((d & _WIDE_MASK) << _EXT) + e
+                g = _div_wide(_GAIN_NUM, wg, dh)  # 2**eg / d, < 2**29
+                if f:
+                    g -= _corr21(g, f, dh)
+                b = _div_wide(o, wo, dh)  # |b| <= 2**29
+                if f:
+                    b -= _corr21(b, f, dh)
+            else:
+                g = _gain_num(self._eg[k], d)  # < 2**29
+                if e:
+                    g -= mul_shift(g, e, _EXT) // d  # mul_shift: 2**29 * 2**14 / 2**14 < 2**30
+                b = div_pow2(o, self._eo[k], d)  # |b| <= 2**29
+                if e:
+                    b -= mul_shift(b, e, _EXT) // d
             g = (g + 1) >> 1
             self._gh[k] = g >> self._k
             self._gl[k] = g & self._kmask
             # floor, not round: apply()'s floor of r*gl/2**15 errs the other way, so the two
             # truncations partly cancel
-            b = div_pow2(self._off[k].eval(t), self._eo[k], d)  # |b| <= 2**29
-            if e:
-                b -= mul_shift(b, e, _EXT) // d
             self._b[k] = b
         self._fill_p3()
 
@@ -797,6 +824,32 @@ def use_native(on=None):
         raise ValueError("use_native(True): this interpreter has no @micropython.viper emitter")
     _native = None if on is None else bool(on)
     return _native is not False and _kernels() is not None
+
+
+def _div_wide(num, e, d):
+    """floor(num * 2**e / d) for 0 < d < 2**20, |num| <= 2**28, e >= 0, the quotient < 2**29.
+
+    Ten bits a step: the remainder stays below d, so (d - 1) << 10 < 2**30.
+    """
+    q = num // d
+    r = num - q * d
+    while e >= 10:
+        r <<= 10
+        c = r // d
+        r -= c * d
+        q = (q << 10) + c
+        e -= 10
+    if e:
+        r <<= e
+        c = r // d
+        q = (q << e) + c
+    return q
+
+
+def _corr21(q, f, d):
+    # floor(floor(q * f / 2**21) / d) within a unit, |q| < 2**29, 0 <= f < 2**21: the two
+    # mul_shift calls stay < 2**29 + 2**22 (limbs of q: 2**15 * 2**7 << 7 and 2**15 * 2**14)
+    return (mul_shift(q, f >> _EXT, _WIDE) + (mul_shift(q, f & _EXT_MASK, _EXT) >> _WIDE)) // d
 
 
 def _gain_num(e, d):

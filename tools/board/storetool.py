@@ -161,6 +161,8 @@ def newest(copies, nvm=False):
     for label, data in copies:
         if data is None:
             continue
+        if nvm and data.count(0xFF) == len(data):
+            continue  # an erased slot (json2bin --nvm writes one): empty, not damaged
         try:
             doc = decode_image(data, slot=nvm)
         except FormatError as e:
@@ -321,7 +323,7 @@ def put(path, model_path, name, part="", base=False):
 
     model = hostio.load_json(model_path)
     st = model.get("store_base" if base else "store") if isinstance(model, dict) else None
-    if not isinstance(st, dict) or "values" not in st:
+    if not isinstance(st, dict) or "values" not in st or "frac" not in st:
         raise hostio.HostError("%s: no 'store' section; write the model with python -m tools gap ... --export"
                                % model_path)
     if os.path.exists(path):

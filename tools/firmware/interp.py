@@ -33,6 +33,7 @@ import os
 import re
 import select
 import shutil
+import signal
 import subprocess
 import tempfile
 import time
@@ -337,6 +338,7 @@ class QemuInterp(_Base):
             raise
 
     def _stop(self):
+        self._pause(False)  # a stopped process would hold its SIGTERM
         if self.transport is not None:
             try:
                 self._unmount()
@@ -391,7 +393,20 @@ class QemuInterp(_Base):
         t.serial = SerialIntercept(t.serial, t.cmd)
         t.mounted = True
 
+    def _pause(self, on):
+        # the port polls its UART while it waits for the next script: about a quarter of a host
+        # core per idle board, so between runs qemu is stopped (its instruction clock stops too)
+        if self.proc is not None and self.proc.poll() is None:
+            self.proc.send_signal(signal.SIGSTOP if on else signal.SIGCONT)
+
     def run(self, code, mounts=(), paths=(), timeout=300, mpy=None):
+        self._pause(False)
+        try:
+            return self._run(code, mounts, paths, timeout, mpy)
+        finally:
+            self._pause(True)
+
+    def _run(self, code, mounts, paths, timeout, mpy):
         from mpremote.transport import TransportError
         if self.proc.poll() is not None:
             raise InterpError("[%s] qemu exited (status %s)" % (self.name, self.proc.returncode))

@@ -189,6 +189,12 @@ def build(res, train_log, sensitivity=None):
                 if group is aug:
                     notes.append("axis %s: sensitivity not identified by the log (input never "
                                  "changes); nominal %g %s per %s" % (a, nominal, mod["out_unit"], mod["ref_unit"]))
+                # the fit put s * ref into the offset where the input stood still at r0 (gravity on
+                # an accelerometer's axis): take the nominal s * r0 back out of it
+                r0 = float(np.median(train_log.ref[:, i]))
+                o = [float(c) for c in ax["offset"]]
+                o[0] -= (float(nominal) - _s0(ax)) * r0 if _s0(ax) > 0 else float(nominal) * r0
+                ax["offset"] = o
                 ax["sensitivity"] = [float(nominal), 0.0]
     on, off = [], []
     v0 = None
