@@ -504,9 +504,9 @@ class MPU6xxx:
         return self.apply(ints[1:4], ints[4:7])
 
     def save(self, store, name="mpu6xxx"):
-        """store.save(name, to_ints()) with a tempcomp.store.Store, after check()."""
+        """to_ints() into a tempcomp.store.Store, as kind KIND_MPU_POLY (2) for this part, after check()."""
         self.check()
-        store.save(name, self.to_ints())
+        store.save_record(name, self.to_ints(), part=self.part, kind=2)
 
     def restore(self, store, name="mpu6xxx"):
         """Re-apply offsets saved with save() (verified); returns them.

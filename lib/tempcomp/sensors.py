@@ -125,7 +125,8 @@ class Sensors:
         return out
 
     def show(self, n=16):
-        """Print temperature and compensated (uncompensated) rates, deg/s."""
+        """Print temperature and compensated (uncompensated) rates, deg/s; returns None (the REPL
+        would echo a returned dict after the line; ``read(n)`` gives the values)."""
         r = self.read(n)
         parts = []
         t = r.get("temp_c")
@@ -136,7 +137,6 @@ class Sensors:
                 c, u = r[key]
                 parts.append("%s %s (raw %+.3f)" % (key, "--" if c is None else "%+.3f" % c, u))
         print("  ".join(parts))
-        return r
 
 
 def mlx_degc(tc, tempout_mv):

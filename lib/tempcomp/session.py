@@ -390,7 +390,8 @@ class Session:
             g.set_single(p[0][1], sc)
 
     def run(self):
-        """The whole session; returns the result dict (also in self.result). Saves at the end."""
+        """The whole session; saves at the end. Returns None (the REPL would echo a dict after the
+        report): the result is in ``self.result``."""
         print("tempcomp calibration session")
         s = _sensors.open_sensors(self.board, self.which)
         self.s = s
@@ -428,7 +429,6 @@ class Session:
             raise
         self._apply_and_save()
         self._report()
-        return r
 
     def _ask_model(self):
         # with an exported model on the board: load it instead of the temperature points, or after
@@ -511,12 +511,12 @@ class Session:
             model = BiasModel(mpts)
             mpu.compensate(model)
             s.model = model
-            st.save(_sensors.MPU_TC, model.to_ints())
+            st.save_record(_sensors.MPU_TC, model.to_ints(), part=mpu.part, kind=2)  # KIND_MPU_POLY
             saved.append(_sensors.MPU_TC)
         apts = [x for x in pts if "adxrs" in x]
         if s.adxrs is not None and apts:
             self._fit_adxrs(s.adxrs, apts)
-            st.save(_sensors.ADXRS, s.adxrs.to_record())
+            st.save_record(_sensors.ADXRS, s.adxrs.to_record(), kind=3)  # KIND_ADI_3POINT
             saved.append(_sensors.ADXRS)
         m = r.get("model")
         if m is not None:

@@ -484,6 +484,53 @@ def bench(report):
     report("instructions: wall time (qemu, both boards)", time.time() - t0, "s")
 
 
+# README's table: (key, its label there); the same rows as ROWS
+README_ROWS = (
+    ("empty_loop", "empty loop (per pass; subtracted from every row)"),
+    ("empty_call", "call of an empty function"),
+    ("apply_be16", "**3-axis compensated sample**, `Compensator.apply_be16`"),
+    ("apply_be16_pure", "same, forced pure Python (`fixedpoint.use_native(False)`)"),
+    ("apply_be16_n", "batch `apply_be16_n`, per 3-axis sample (%d per call)" % BATCH),
+    ("apply_be16_n_pure", "batch, forced pure Python, per sample"),
+    ("update", "`Compensator.update(t)`, a new temperature (scales varying with t)"),
+    ("sample_with_update", "`update(t)` + `apply_be16`, a new temperature every sample"),
+    ("float_naive", "anchor: naive float 3-axis sample (`struct`, both polynomials per sample)"),
+    ("float_careful", "anchor: careful float 3-axis sample (polynomials once per temperature)"),
+    ("float_careful_update", "careful float, its per-temperature update"),
+    ("read_compensated", "MPU-6xxx `read_compensated`, a new temperature step (update + 6 axes)"),
+    ("read_compensated_steady", "same, temperature unchanged"),
+    ("read_raw", "MPU-6xxx `read_raw` (the same I²C read, no compensation)"),
+    ("fifo_packet", "MPU-6xxx bias capture, one FIFO packet"),
+    ("mlx_rate", "MLX90609 `rate()` (TEMPOUT and rate conversions, update every sample)"),
+    ("mlx_rate_every16", "same, `temp_every=16`"),
+    ("mlx_exchange", "one 3-byte SPI exchange (SPIDevice + replay bus; about 6 per conversion)"),
+    ("adxrs_rate", "ADXRS `rate()` (VT and rate ADC reads, update every sample)"),
+    ("adxrs_rate_every16", "same, `temp_every=16`"),
+    ("an12760_sample", "AN12760 3-axis sample (new temperature code + `apply_be16`)"),
+    ("an12760_steady", "same, temperature steady"),
+)
+
+
+def markdown(results):
+    """README's instruction table, from one measure()."""
+    out = ["| instructions per call | Cortex-M3 | Cortex-M7 |", "|---|---:|---:|"]
+    for key, label in README_ROWS:
+        cells = []
+        for name, _ in BOARDS:
+            v = results.get(name, {}).get(key)
+            c = "-" if v is None else "{:,.0f}".format(v)
+            cells.append("**%s**" % c if label.startswith("**") else c)
+        out.append("| %s | %s |" % (label, " | ".join(cells)))
+    return "\n".join(out)
+
+
 if __name__ == "__main__":
+    # python -m tools.bench.instructions [--markdown]: the table alone, or README's version of it
     sys.path.insert(0, os.path.join(REPO, "lib"))
-    bench(lambda name, value, unit: print("  %-72s %s %s" % (name, value, unit)))
+    if "--markdown" in sys.argv[1:]:
+        res, why = measure()
+        print(markdown(res))
+        for name, note in why.items():
+            print("%s: %s" % (name, note), file=sys.stderr)
+    else:
+        bench(lambda name, value, unit: print("  %-72s %s %s" % (name, value, unit)))

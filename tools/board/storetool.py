@@ -161,6 +161,8 @@ def newest(copies, nvm=False):
     for label, data in copies:
         if data is None:
             continue
+        if nvm and data.count(0xFF) == len(data):
+            continue  # an erased slot (json2bin --nvm writes one): empty, not damaged
         try:
             doc = decode_image(data, slot=nvm)
         except FormatError as e:

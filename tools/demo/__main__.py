@@ -132,16 +132,34 @@ class Echo:
         self.tty = sys.stdout.isatty()
         self.line = ""
         self.cr = False
+        self.held = False
+
+    HIDDEN = ("ROW ", "STATE ")  # values the demo parses, not for the reader
 
     def __call__(self, c):
         if self.tty:
-            sys.stdout.write(c)
+            # live, but a line that starts as a hidden one is held until it is known
             if c == "\n":
+                if not self.line.startswith(self.HIDDEN):
+                    sys.stdout.write((self.line if self.held else "") + c)
+                self.line = ""
+                self.held = False
                 sys.stdout.flush()
+                return
+            self.line += c
+            if self.line.startswith(self.HIDDEN):
+                return
+            if any(h.startswith(self.line) for h in self.HIDDEN):
+                self.held = True
+                return
+            sys.stdout.write(self.line if self.held else c)
+            self.held = False
+            if c == "\r":
+                self.line = ""
             return
         # a log keeps the last state of each progress line only
         if c == "\n":
-            if self.line.strip() and not self.line.startswith("ROW "):
+            if self.line.strip() and not self.line.startswith(self.HIDDEN):
                 sys.stdout.write(self.line.rstrip() + "\n")
                 sys.stdout.flush()
             self.line = ""
