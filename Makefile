@@ -16,7 +16,7 @@ PYTEST_ARGS ?=
 MICROPY_SRC ?=
 CIRCUITPY_SRC ?=
 
-.PHONY: setup fw test demo bench mpy typecheck lint deploy clean board board-start board-stop gap gap-check
+.PHONY: setup fw test demo bench mpy typecheck lint deploy dist clean board board-start board-stop gap gap-check
 
 setup: $(VENV)/.stamp $(NODE_MODULES)/.stamp fw
 
@@ -52,10 +52,11 @@ bench: setup
 	$(PY) -m tools bench
 
 # Sim-to-real gap diagnosis of a log (see README): make gap LOG=train.csv [WITHHELD=held.csv]
+# [EXPORT=out/model.json: the augmented model for the board, docs/augment.md]
 gap: setup
-	@test -n "$(LOG)" || { echo "usage: make gap LOG=train.csv [WITHHELD=held.csv]"; exit 2; }
+	@test -n "$(LOG)" || { echo "usage: make gap LOG=train.csv [WITHHELD=held.csv] [EXPORT=out/model.json]"; exit 2; }
 	@mkdir -p out
-	$(PY) -m tools gap $(LOG) $(if $(WITHHELD),--withheld $(WITHHELD)) --json out/gap.json --plot out/gap.png
+	$(PY) -m tools gap $(LOG) $(if $(WITHHELD),--withheld $(WITHHELD)) --json out/gap.json --plot out/gap.png $(if $(EXPORT),--export $(EXPORT))
 
 # The blind benchmark of the gap diagnosis: 27 generated cases with hidden labels
 gap-check: setup
@@ -64,11 +65,17 @@ gap-check: setup
 mpy: setup
 	$(PY) -m tools mpy build/mpy
 
+# .mpy files by default (PY_SOURCES=1: the .py sources); docs/install.md
 deploy: setup
-	BOARD_TCP=$(BOARD_TCP) $(PY) -m tools deploy --port "$(PORT)" --board "$(BOARD)"
+	BOARD_TCP=$(BOARD_TCP) $(PY) -m tools deploy --port "$(PORT)" --board "$(BOARD)" $(if $(filter 1 yes,$(PY_SOURCES)),--py)
 
-# The virtual board: the MicroPython VM serving its REPL on 127.0.0.1:$(BOARD_TCP), flash kept in
-# build/vboard/flash/. `make board` runs it in the foreground; board-start/board-stop in the background.
+# mip-installable .mpy packages, one per .mpy version: dist/mpy-v6.3/package.json + tempcomp/*.mpy
+dist: setup
+	$(PY) -m tools dist dist
+
+# The virtual board: the MicroPython VM serving its REPL on a pty (build/vboard/tty, for
+# `mpremote connect build/vboard/tty repl`) and on 127.0.0.1:$(BOARD_TCP) (exec, cp, mount), flash kept
+# in build/vboard/flash/. `make board` runs it in the foreground; board-start/board-stop in the background.
 board: setup
 	$(VBOARD) --port $(BOARD_TCP)
 
@@ -79,4 +86,4 @@ board-stop:
 	node tools/vboard/server.mjs --stop
 
 clean:
-	rm -rf build $(VENV) $(NODE_MODULES)
+	rm -rf build dist $(VENV) $(NODE_MODULES)

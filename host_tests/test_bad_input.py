@@ -306,20 +306,25 @@ def check_outcome(rc, out, err, named, outputs, need_line=False):
         assert not os.path.exists(o), "%s left behind after a failed run" % o
 
 
+_UNDAMAGED_WORKS = set()
+
+
 @pytest.mark.parametrize("target,kind,seed", CASES)
 def test_damaged_input(target, kind, seed, tmp_path, capsys):
     _, build = TARGETS[target]
     f, argv, outputs = build(tmp_path)
     good = f.read_bytes()
-    rc, out, err = run_front_door(argv, capsys)
-    assert rc == 0, (target, "the undamaged input must work", err)
-    for o in outputs:
-        if os.path.isdir(o):
-            import shutil
+    if target not in _UNDAMAGED_WORKS:  # once per command: the undamaged input works
+        rc, out, err = run_front_door(argv, capsys)
+        assert rc == 0, (target, "the undamaged input must work", err)
+        for o in outputs:
+            if os.path.isdir(o):
+                import shutil
 
-            shutil.rmtree(o)
-        elif os.path.exists(o):
-            os.remove(o)
+                shutil.rmtree(o)
+            elif os.path.exists(o):
+                os.remove(o)
+        _UNDAMAGED_WORKS.add(target)
     bad, line_damage = damage(kind, good, random.Random(seed * 7919 + len(kind)))
     f.write_bytes(bad)
     rc, out, err = run_front_door(argv, capsys)
@@ -475,3 +480,109 @@ def test_real_command_lines(argv_tail, says, tmp_path):
     assert p.returncode == 2, p.stderr
     assert p.stderr.count("\n") == 1 and p.stderr.startswith("error: ") and says in p.stderr, p.stderr
     assert not o.exists()
+
+
+def test_records_the_device_would_refuse_are_not_written(tmp_path, capsys):
+    # an axis wired inverted: sensitivity -1000 mg/g fits (finite) but gives sen_tol -2, which
+    # tempcomp.an12760 refuses (sensitivity must stay positive)
+    f = tmp_path / "inv.csv"
+    f.write_text("temp_c,ref_g,out_mg\n" + "".join("%g,%g,%g\n" % (t, g, -1000 * g + 0.1 * t)
+                                                     for t in (-40, 25, 85) for g in (-1, 1)))
+    o = tmp_path / "o.json"
+    rc, out, err = run_front_door(["fit", "an12760", str(f), "--json", str(o)], capsys)
+    assert rc == 2 and "the device would refuse this record" in err and "sen_tol" in err, err
+    assert err.count("\n") == 1 and not o.exists()
+
+
+@pytest.mark.parametrize("out_mv,says", [
+    (lambda t, r: 2500.0, "stuck rate output"),                       # the output never moves
+    (lambda t, r: 2500.0 + r * (6.0 if t < 50 else -6.0), "changes sign"),
+])
+def test_adxrs_output_that_does_not_follow_the_rate(out_mv, says, tmp_path, capsys):
+    f = tmp_path / "g.csv"
+    rows = ["temp_c,vt_mv,rate_dps,out_mv"]
+    for t in (-40.0, 25.0, 85.0):
+        for r in (0.0, 200.0, -200.0):
+            for k in range(3):
+                rows.append("%g,%.2f,%g,%.3f" % (t, 2500 + 9 * (t - 25), r, out_mv(t, r) + 0.01 * k))
+    f.write_text("\n".join(rows) + "\n")
+    o = tmp_path / "o.json"
+    rc, out, err = run_front_door(["fit", "adxrs", str(f), "--json", str(o)], capsys)
+    assert rc == 2 and says in err and str(f) in err and err.count("\n") == 1, err
+    assert not o.exists()
+
+
+@pytest.mark.parametrize("argv", [
+    ["mpy", "{afile}/sub"],
+    ["dist", "{afile}/sub"],
+    ["gap-check", "--small", "--keep", "{afile}/sub"],
+])
+def test_commands_that_only_write_name_the_path_they_cannot_write(argv, tmp_path, capsys):
+    (tmp_path / "afile").write_text("a plain file, not a directory\n")
+    argv = [a.format(afile=tmp_path / "afile") for a in argv]
+    rc, out, err = run_front_door(argv, capsys)
+    assert rc == 2 and err.count("\n") == 1 and err.startswith("error: ") and str(tmp_path / "afile") in err, err
+
+
+@pytest.fixture(scope="module")
+def exported(tmp_path_factory):
+    """A log and the model `gap --export` wrote for it; replay runs on them (in the real VM)."""
+    d = tmp_path_factory.mktemp("replay")
+    _gap_log(d / "log.csv")
+    assert front_door(["gap", str(d / "log.csv"), "--json", str(d / "gap.json"), "--quiet",
+                       "--export", str(d / "model.json")]) == 0
+    assert front_door(["replay", str(d / "model.json"), str(d / "log.csv"), "--json", str(d / "r.json")]) == 0
+    _strict((d / "r.json").read_text())
+    return d
+
+
+# damage that can never leave a usable file (replay's valid runs are slow: the VM replays the log)
+REPLAY_LOG = [(k, s) for k in ("delete_cell", "big", "nan", "nul", "latin1") for s in SEEDS] + \
+    [(k, 0) for k in ("utf16", "garbage", "empty", "header_only")]
+REPLAY_MODEL = [(k, 0) for k in ("utf16", "garbage", "empty", "nul")] + [("cut", s) for s in SEEDS] + \
+    [("list", 0), ("number", 0), ("no-device", 0)]
+
+
+@pytest.mark.parametrize("which,kind,seed", [("log",) + c for c in REPLAY_LOG] + [("model",) + c for c in REPLAY_MODEL])
+def test_replay_damaged_input(which, kind, seed, exported, tmp_path, capsys):
+    log, model = tmp_path / "log.csv", tmp_path / "model.json"
+    log.write_bytes((exported / "log.csv").read_bytes())
+    model.write_bytes((exported / "model.json").read_bytes())
+    f = log if which == "log" else model
+    rng = random.Random(seed * 31 + len(kind))
+    if kind == "cut":
+        b = f.read_bytes()
+        f.write_bytes(b[:rng.randrange(1, len(b) - 3)])
+    elif kind in ("list", "number", "no-device"):
+        f.write_text({"list": "[1, 2]", "number": "7", "no-device": '{"t0_c": 25}'}[kind])
+    elif kind == "nul" and which == "model":
+        b = f.read_bytes()
+        f.write_bytes(b[:5] + b"\x00" + b[5:])
+    else:
+        f.write_bytes(damage(kind, f.read_bytes(), rng)[0])
+    o = tmp_path / "r.json"
+    rc, out, err = run_front_door(["replay", str(model), str(log), "--json", str(o)], capsys)
+    check_outcome(rc, out, err, f, [o], need_line=which == "log" and kind not in ("garbage", "empty", "header_only"))
+    assert rc == 2
+
+
+@pytest.mark.parametrize("model,says", [
+    (b"", "not valid JSON"),
+    (b"\xff\xfe{", "not UTF-8"),
+    (b"[1, 2]", "no 'store' section"),
+    (b'{"store": {"values": [1, 2]}}', "no 'store' section"),
+    (b'{"store": {"values": [1, 2], "frac": [0, 99]}}', "frac[1] = 99"),
+    (b'{"store": {"values": [1.5], "frac": [0]}}', "not an integer"),
+    (b'{"store": {"values": "abc", "frac": [0]}}', "values must be a list"),
+])
+def test_store_put_refuses_a_bad_model(model, says, tmp_path, capsys):
+    from tempcomp.store import Store
+
+    p = str(tmp_path / "cal.bin")
+    Store(p).save("gyro", (1, 2, 3))
+    before = open(p, "rb").read()
+    m = tmp_path / "model.json"
+    m.write_bytes(model)
+    rc, out, err = run_front_door(["store", "put", p, str(m), "--name", "aug"], capsys)
+    assert rc == 2 and err.count("\n") == 1 and says in err and str(m) in err, err
+    assert open(p, "rb").read() == before  # the store is unchanged

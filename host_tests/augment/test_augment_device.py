@@ -3,45 +3,10 @@
 float64 reference in tools/simgap/devmodel.py, and bit-identical to the same code on CPython."""
 import numpy as np
 import pytest
+from augsynth import OUT_SCALE, every_term_model, inputs
 
 from tempcomp import augment
 from tools.simgap import devmodel, replay
-
-OUT_SCALE = 100.0
-
-
-def every_term_model():
-    return {"t_lsb": 0.01, "t_off": 0.0, "raw_lsb": 1.0, "raw_range": [-32768, 32767],
-            "out_scale": OUT_SCALE, "t0": 25.0, "t_cal": [0.0, 50.0], "supply_lsb": 0.001,
-            "supply0": 3.3, "acc_lsb": 0.001,
-            "offset": [[50, 4, -0.02], [-30, 2, 0.01], [10, -3, 0.015]],
-            "sensitivity": [[16.4, 0.002], [16.0, -0.003], [16.2, 0.001]],
-            "features": [{"kind": "dT"}, {"kind": "lag", "tau": 60.0, "bound": 10.0},
-                         {"kind": "play", "width": 2.0}, {"kind": "play", "width": 1.0, "lag": 60.0},
-                         {"kind": "drift_exp", "tau": 300.0}, {"kind": "drift_hyp", "tau": 200.0},
-                         {"kind": "uptime", "bound": 20000.0}, {"kind": "supply", "bound": 0.5},
-                         {"kind": "acc", "axis": 0, "bound": 2.0}, {"kind": "acc", "axis": 2, "bound": 2.0},
-                         {"kind": "prod", "a": 1, "b": 0}, {"kind": "prod", "a": 1, "b": 1, "bound": 100.0},
-                         {"kind": "prod", "a": 8, "b": 0}, {"kind": "lag", "tau": 900.0, "bound": 40.0}],
-            "offset_terms": [[[1, 5.0], [2, 3.0], [4, 20.0], [6, 0.001], [10, 0.05], [11, 0.2]],
-                             [[3, -4.0], [5, 8.0], [7, 30.0], [8, 2.0], [13, 1.5]],
-                             [[9, -1.5], [12, 0.03]]],
-            "gain_terms": [[[1, 0.002]], [[7, 0.01]], [[13, -0.001]]],
-            "cross": [[[1, 0.01, 0.0001]], [[0, -0.005, 0.0]], [[0, 0.003, 0.0], [1, 0.002, -0.00005]]]}
-
-
-def inputs(m, n=3000, seed=1, jitter=3):
-    rng = np.random.default_rng(seed)
-    t_s = np.arange(n) * 1.0
-    T = 25 + 20 * np.sin(t_s / 400) + rng.normal(0, 0.05, n)
-    ref = rng.uniform(-1500, 1500, (n, 3))
-    inp = {"t": np.round(T / 0.01).astype(np.int64),
-           "dt_ms": np.r_[0, np.full(n - 1, 1000) + rng.integers(-jitter, jitter + 1, n - 1)],
-           "supply": np.round((3.3 + 0.2 * np.sin(t_s / 90)) / 0.001).astype(np.int64),
-           "acc": np.round(rng.uniform(-1, 1, (n, 3)) / 0.001).astype(np.int64), "uptime0_ms": 0}
-    F = devmodel.features(m, inp)
-    inp["raw"] = np.round(devmodel.predict(m, inp, ref, F)).astype(np.int64)
-    return inp, F
 
 
 def cpython_run(m, inp):
@@ -134,3 +99,20 @@ def test_bad_models_are_refused_by_name(change, words):
     m.update(change)
     with pytest.raises(ValueError, match=words):
         augment.Augmented(m)
+
+
+def test_a_power_on_mid_log_restarts_filters_and_uptime_like_the_reference():
+    m = every_term_model()
+    inp, _ = inputs(m, n=1200, seed=9)
+    inp["starts"] = np.array([700])
+    inp["dt_ms"][700] = 0
+    F = devmodel.features(m, inp)
+    assert F[700, 6] == 0 and F[699, 6] > 600  # uptime back to 0 at the power-on
+    out, info = replay.run_device(m, inp)
+    assert info["heap_locked"] and info["power_ons"] == 1
+    err = np.abs(out - devmodel.compensate(m, inp, F) * OUT_SCALE)
+    assert err.max() <= 1.5
+    # without the power-on the board's filters would carry on: the outputs differ after it
+    inp2 = dict(inp, starts=np.array([], int))
+    out2, _ = replay.run_device(m, inp2)
+    assert np.array_equal(out2[:700], out[:700]) and not np.array_equal(out2[700:], out[700:])

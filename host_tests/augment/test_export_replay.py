@@ -3,6 +3,7 @@ device code in the real MicroPython VM (tools/simgap/replay.py) over a withheld 
 from our own generator (helpers/augsynth.py), one effect each, the device's shrink (augmented
 replay RMS over base-only replay RMS) equals the host's (the diagnosis' host_check RMS ratio)."""
 import json
+import os
 import subprocess
 import sys
 
@@ -98,3 +99,40 @@ def test_replay_refuses_what_is_not_a_model(tmp_path):
                         str(tmp_path / "o.json")], cwd=REPO, capture_output=True, text=True, timeout=120)
     assert r.returncode == 2
     assert r.stderr.count("\n") == 1 and "not an exported model" in r.stderr
+
+
+def test_an_axis_whose_input_never_moves_gets_a_nominal_sensitivity_and_the_right_offset():
+    # z held at -60 dps all along: offset and sensitivity are one number there; the export takes
+    # the unit ratio (here --sensitivity) and must leave the board reading -60, not 0
+    tr = augsynth.make("hysteresis", still=2)
+    wh = augsynth.make("hysteresis", withheld=True, still=2)
+    res, _ = diagnose(tr, wh)
+    exp = export.build(res, tr, sensitivity=float(augsynth.SENS[2]))
+    assert any("axis z: sensitivity not identified" in n for n in exp["notes"])
+    base, y = replay.replay(exp, wh, base_only=True)
+    h = exp["host"]["rms"]["base_only"]["z"]
+    assert abs(np.mean(y[:, 2]) + 60.0) < 0.5
+    assert abs(base["rms"]["z"] * augsynth.SENS[2] - h) <= 0.05 * h + 0.1
+
+
+@pytest.mark.parametrize("name", ["tofupilot_gyro", "tofupilot_accel"])
+def test_real_logs_the_board_reproduces_the_hosts_figures(tmp_path, name):
+    # float logs (mdps, mg: raw codes chosen by the export), a still gravity axis, sensitivity not
+    # identified: on the real TofuPilot logs the board's withheld RMS equals the host's own figure
+    from tools.simgap import convert as convert_logs
+    from tools.simgap.logio import read_log
+
+    data = convert_logs.default_data_dir()
+    if not os.path.isdir(data):
+        pytest.skip("real data not found at %s" % data)
+    paths = convert_logs.convert(data, str(tmp_path))
+    train, held = (read_log(p) for p in paths[name])
+    res, _ = diagnose(train, held)
+    exp = export.build(res, train)
+    host = exp["host"]["rms"]
+    for base_only, key in ((True, "base_only"), (False, "augmented")):
+        r, _ = replay.replay(exp, held, base_only)
+        assert r["allocated_per_sample"] == 0
+        for a in "xyz":
+            # same rows (no outliers in these withheld segments); the board's rounding only
+            assert abs(r["rms"][a] * 1000 - host[key][a]) <= 0.01 * host[key][a] + 0.05, (key, a)

@@ -20,9 +20,9 @@ def test_put_then_restore_on_the_board_compensates_the_same(tmp_path):
     model = tmp_path / "model.json"
     exp = export.write(str(model), res, tr)
     store = tmp_path / "tempcomp.cal"
-    for name in ("gyro_aug", "other", "gyro_aug"):  # a second put replaces, others stay
+    for name, extra in (("gyro_aug", []), ("other", ["--base"]), ("gyro_aug", [])):  # a second put replaces
         r = subprocess.run([sys.executable, "-m", "tools", "store", "put", str(store), str(model),
-                            "--name", name], cwd=REPO, capture_output=True, text=True, timeout=120)
+                            "--name", name] + extra, cwd=REPO, capture_output=True, text=True, timeout=120)
         assert r.returncode == 0, r.stderr
     assert "generation 3" in r.stdout
     inp = devmodel.board_inputs(exp["device"], wh.subset(np.arange(300)))
@@ -34,7 +34,8 @@ from array import array
 from tempcomp.store import Store, KIND_AUGMENT
 from tempcomp.augment import Augmented, from_store
 st = Store('/data/tempcomp.cal')
-print('NAMES', sorted(st.names()), st.record('gyro_aug').kind == KIND_AUGMENT)
+print('NAMES', sorted(st.names()), st.record('gyro_aug').kind == KIND_AUGMENT,
+      from_store(st, 'other')['features'] == [])
 a = Augmented(from_store(st, 'gyro_aug'))
 with open('/data/model.json') as f:
     b = Augmented(json.load(f)['device'])
@@ -51,7 +52,7 @@ for r in rows:
 print('WORST', worst, ob[0])
 """, mounts=[str(tmp_path) + ":/data"])
     names = [ln for ln in out.splitlines() if ln.startswith("NAMES")][0]
-    assert names == "NAMES ['gyro_aug', 'other'] True"
+    assert names == "NAMES ['gyro_aug', 'other'] True True"
     worst = int([ln for ln in out.splitlines() if ln.startswith("WORST")][0].split()[1])
     assert worst <= 1  # coefficients rounded to ~30 bits in the store
     full, _ = replay.replay(exp, wh.subset(np.arange(300)))

@@ -41,8 +41,11 @@ from tools.board.boardctl import Remote, VirtualBoard  # noqa: E402
 ROOM_C = 20.0
 HOLD_C = 38.0
 SPIN_DPS = 15.0
-# heater with plateaus at 32 and 44 degC: the points are taken where the temperature is steady
-HEAT = [(0, ROOM_C), (1, ROOM_C), (1.5, 32.0), (5, 32.0), (5.5, 44.0), (12, 44.0)]
+# heater with plateaus at 32 and 44 degC: the points are taken where the temperature is steady.
+# Times are the board's simulated seconds (x2, VBOARD_TIME_SCALE), which advance with what the
+# board does, not with the host: a point's captures take about 1.4 s of them here, on an idle
+# host or a loaded one, so the room plateau outlasts the first point's captures.
+HEAT = [(0, ROOM_C), (4, ROOM_C), (4.5, 32.0), (10, 32.0), (10.5, 44.0), (20, 44.0)]
 
 SESSION = r"""
 import tempcomp_board, vboard_sensors

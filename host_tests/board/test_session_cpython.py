@@ -30,7 +30,9 @@ def board(with_parts=True):
 def test_scripted_session_saves_and_restore_reapplies(tmp_path, capsys):
     b, sim = board()
     path = str(tmp_path / "t.cal")
-    r = Session(b, store_path=path, answers=[], points=1, packets=200).run()
+    sess = Session(b, store_path=path, answers=[], points=1, packets=200)
+    sess.run()
+    r = sess.result
     assert r["saved"] == ["mlx90609", "mpu6xxx", "mpu_tc", "adxrs"]
     want = tuple(round(-v * 32.8) for v in BIAS)
     assert all(abs(g - w) <= 1 for g, w in zip(sim.gyro_offsets(), want)), (sim.gyro_offsets(), want)
@@ -45,7 +47,9 @@ def test_scripted_session_saves_and_restore_reapplies(tmp_path, capsys):
 def test_skip_and_quit(tmp_path):
     b, sim = board()
     path = str(tmp_path / "t.cal")
-    r = Session(b, store_path=path, which=("mpu6xxx",), answers=["s", "s", "s"], points=1).run()
+    sess = Session(b, store_path=path, which=("mpu6xxx",), answers=["s", "s", "s"], points=1)
+    sess.run()
+    r = sess.result
     assert r["saved"] == [] and sim.gyro_offsets() == (0, 0, 0)
     with pytest.raises(Aborted):
         Session(b, store_path=path, which=("mpu6xxx",), answers=["q"]).run()

@@ -58,8 +58,10 @@ def want_gyro():
 def test_turning_during_the_zero_is_refused_and_redone(tmp_path, capsys, part, turn, caught_by):
     b, sim = board(part)
     path = str(tmp_path / "t.cal")
-    r = Session(b, store_path=path, which=("mpu6xxx",), answers=[], hook=hands(sim, turn), points=1,
-                packets=1000).run()
+    sess = Session(b, store_path=path, which=("mpu6xxx",), answers=[], hook=hands(sim, turn), points=1,
+                packets=1000)
+    sess.run()
+    r = sess.result
     out = capsys.readouterr().out
     msg = {"face": "the board was turning during the zero or this check",
            "zro": "was the board turning? Nothing written",
@@ -85,8 +87,10 @@ def test_a_turn_that_never_stops_ends_the_session_with_the_old_offsets(tmp_path)
 def test_keep_answer_keeps_the_zero(tmp_path, capsys):
     b, sim = board("MPU-6050")
     answers = ["", "", "k"]  # start the zero, start the face check, keep
-    r = Session(b, store_path=str(tmp_path / "t.cal"), which=("mpu6xxx",), answers=answers, points=1,
-                packets=300, hook=hands(sim, (0.0, 0.0, 10.0))).run()
+    sess = Session(b, store_path=str(tmp_path / "t.cal"), which=("mpu6xxx",), answers=answers, points=1,
+                packets=300, hook=hands(sim, (0.0, 0.0, 10.0)))
+    sess.run()
+    r = sess.result
     assert "  kept" in capsys.readouterr().out
     assert abs(r["mpu"][0][2] - round(-(10.0 + BIAS[2]) * 32.8)) <= 3  # what the user chose
 
@@ -102,7 +106,9 @@ def test_icm20602_trim_change_during_the_session_is_not_saved(tmp_path, capsys, 
             sim.glitch_trim(1)  # the part rewrites its Y trim while the user waits
 
     path = str(tmp_path / "t.cal")
-    r = Session(b, store_path=path, which=("mpu6xxx",), answers=[], hook=hook, points=1, packets=300).run()
+    sess = Session(b, store_path=path, which=("mpu6xxx",), answers=[], hook=hook, points=1, packets=300)
+    sess.run()
+    r = sess.result
     out = capsys.readouterr().out
     assert "ICM-20602 changed 1 offset register(s) by itself during the session" in out, out
     assert r["trim_changes"] == 1

@@ -52,15 +52,31 @@ def test_div_pow2_is_exact_floor_within_bounds():
         assert got == (num << e) // d
 
 
+def test_quick_division_is_exact_floor_within_bounds():
+    # update()'s 10-bit-step division by the scale's top 20 bits, and its fraction correction
+    rng = random.Random(9)
+    for _ in range(3000):
+        d = rng.randint(1 << 17, (1 << 20) - 1)
+        num = rng.randint(-(1 << 28), 1 << 28)
+        e = 0
+        while abs(num) * (1 << (e + 1)) // d < (1 << 29) and e < 60:
+            e += 1
+        q = fp._div_wide(BInt(num), e, BInt(d))
+        assert q == (num << e) // d
+        f = rng.randint(0, (1 << 21) - 1)
+        c = fp._corr21(BInt(q), BInt(f), BInt(d))
+        assert abs(int(c) - (int(q) * f / 2.0**21) / d) <= 2.0 / d + 1.0
+
+
 # --- bounds: every intermediate of set-up's integer stage and of apply() at the corners --------
 
 
 def _bounded(comp):
-    bind(comp, ["_gh", "_gl", "_b", "_s", "_half", "_mid", "_eo", "_eg", "_k", "_kmask"])
+    bind(comp, ["_gh", "_gl", "_b", "_s", "_half", "_mid", "_eo", "_eg", "_k", "_kmask", "_fq", "_fs", "_wg"])
     if comp._p3 is not None:
         bind(comp, ["_p3"])
     for p in comp._sc + comp._off:
-        bind(p, ["_a", "_a0", "_mid", "_h", "_vs", "_vr"])
+        bind(p, ["_a", "_a0", "_a0h", "_a0l", "_vm", "_mid", "_h", "_vs", "_vr"])
     comp._t = None
     return comp
 

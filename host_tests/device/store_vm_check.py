@@ -45,6 +45,16 @@ class _Torn:
         pass
 
 
+class _CutOs:
+    """The os module with rename replaced."""
+
+    def __init__(self, rename):
+        self.rename = rename
+
+    def __getattr__(self, name):
+        return getattr(os, name)
+
+
 def torn_writes(p):
     """A save torn at several bytes: the store loads the old or the new values, never garbage."""
     old = (1, 2, 2147483647)
@@ -82,13 +92,14 @@ def torn_writes(p):
                 real_rename(a, b)
             raise PowerCut()
 
-        os.rename = cut_rename
+        # store_write's own `os` name, not the os module: bare-metal ports' os is read-only
+        store_write.os = _CutOs(cut_rename)
         try:
             st.Store(p).save("g", new)
         except PowerCut:
             pass
         finally:
-            os.rename = real_rename
+            store_write.os = os
         ok("rename_cut_" + when, st.Store(p).load("g") in (old, new))
 
 

@@ -203,7 +203,12 @@ def test_host_fit_more_points_and_bad_input(tmp_path):
     t = np.repeat([-40.0, 25.0, 85.0], 2)
     with pytest.raises(FitError, match="missing rate"):
         FA.fit_rows(t, 2500 + 9 * (t - 25), np.zeros(6), np.full(6, 2500.0))
+    # a rate output that follows the rate (12.5 mV/dps), so that only the named fault is present
+    rate = np.tile([0.0, 100], 3)
+    out = 2500.0 + 12.5 * rate
     with pytest.raises(FitError, match="VT does not rise"):
-        FA.fit_rows(t, 2500 - 9 * (t - 25), np.tile([0.0, 100], 3), np.full(6, 2500.0))
+        FA.fit_rows(t, 2500 - 9 * (t - 25), rate, out)
     with pytest.raises(FitError, match="not sorted"):
-        FA.fit_rows(t[::-1].copy(), 2500 + 9 * (t[::-1] - 25), np.tile([0.0, 100], 3), np.full(6, 2500.0))
+        FA.fit_rows(t[::-1].copy(), 2500 + 9 * (t[::-1] - 25), rate, out)
+    with pytest.raises(FitError, match="stuck rate output"):
+        FA.fit_rows(t, 2500 + 9 * (t - 25), rate, np.full(6, 2500.0))

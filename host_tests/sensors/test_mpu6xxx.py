@@ -13,7 +13,7 @@ import warnings
 import pytest
 
 from tempcomp.mpu6xxx import MIN_PACKETS, MPU6xxx, MPUError
-from tempcomp.mpu6xxx_tc import BiasModel
+from tempcomp.mpu6xxx_tc import BiasModel, merge_points
 from tools.sim.buses import SimI2C
 from tools.sim.mpu6xxx_sim import FACES, MPU6xxxSim
 
@@ -519,6 +519,21 @@ def test_bias_model_fits_and_round_trips():
         BiasModel(pts + [(1000, (0, 0, 0), (0, 0, 0))])
     with pytest.raises(ValueError, match="not a BiasModel record"):
         BiasModel.from_ints([2, 1, 2])
+
+
+def test_merge_points_averages_captures_at_one_temperature_reading():
+    # a heater slower than the session: two captures read the same raw temperature
+    a = (1000, (10.0, -4.0, 2.0), (100.0, 50.0, -8.0))
+    b = (1000, (12.0, -2.0, 3.0), (104.0, 52.0, -6.0))
+    c = (4000, (20.0, 0.0, 1.0), (90.0, 40.0, 0.0))
+    with pytest.raises(ValueError, match="same temperature reading 1000: the temperature did not move"):
+        BiasModel([a, b, c])
+    pts, merged = merge_points([a, c, b])
+    assert merged == [1000]
+    assert pts == [(1000, (11.0, -3.0, 2.5), (102.0, 51.0, -7.0)), c]  # the means, worked by hand
+    m = BiasModel(pts)
+    assert m.value(0, 1000) == pytest.approx(11.0) and m.value(5, 4000) == pytest.approx(0.0)
+    assert merge_points([a, c]) == ([a, c], [])
 
 
 def test_blinka_busio_i2c():

@@ -4,6 +4,7 @@ VM-made record read back on the host, and zero-allocation lookups (allocprobe)."
 
 import os
 
+import interps
 import pytest
 from paths import REPO
 
@@ -12,9 +13,8 @@ from tools.firmware.mpvm import alloc_lines
 
 
 @pytest.fixture(scope="module")
-def vm_run(tmp_path_factory):
-    from tools.firmware import mpvm
-
+def vm_run(tmp_path_factory, interp):
+    # on every interpreter (the interp fixture): the WebAssembly VM, Cortex-M3/M7 firmware, CircuitPython
     d = tmp_path_factory.mktemp("hostdata")
     doc = {"generation": 7, "records": [
         {"name": "mlx", "part": "MLX90609", "serial": "E2", "kind": "mlx90609_rezero",
@@ -22,8 +22,7 @@ def vm_run(tmp_path_factory):
          "frac": [4, 4], "values": [-12345, 2**31 - 1]}]}
     (d / "host.cal").write_bytes(storetool.encode_image(doc))
     code = "import store_vm_check\n"
-    out = mpvm.run(code, mounts=(str(d) + ":/hostdata",), paths=("/vmtest",), timeout=180)
-    return out
+    return interps.run(interp, code, mounts=(str(d) + ":/hostdata",), paths=("/vmtest",), timeout=180)
 
 
 def _vals(out):

@@ -80,16 +80,25 @@ KINDS = ("dT", "lag", "play", "drift_exp", "drift_hyp", "uptime", "supply", "acc
 _DT, _LAG, _PLAY, _DEXP, _DHYP, _UP, _SUP, _ACC, _PROD = range(9)
 
 
-def _ticks():
-    f = getattr(time, "ticks_ms", None)
-    if f is not None:
-        return f()
-    return int(time.monotonic() * 1000)  # pyright: ignore[reportAttributeAccessIssue]
+# The ms clock for dt_ms=-1, allocation-free where the port has one: time.ticks_ms on
+# MicroPython, supervisor.ticks_ms on CircuitPython boards (it wraps at 2**29); CPython's
+# time.monotonic() float is the fallback.
+_ticks = getattr(time, "ticks_ms", None)  # type: ignore
+_ticks_diff = getattr(time, "ticks_diff", None)  # type: ignore
+if _ticks is None or _ticks_diff is None:
+    try:
+        from supervisor import ticks_ms as _ticks  # pyright: ignore[reportMissingImports]
 
+        def _ticks_diff(a, b):
+            d = (a - b) & 0x1FFFFFFF
+            return d - 0x20000000 if d & 0x10000000 else d
+    except ImportError:
 
-def _ticks_diff(a, b):
-    d = getattr(time, "ticks_diff", None)
-    return d(a, b) if d is not None else a - b
+        def _ticks():
+            return int(time.monotonic() * 1000)  # pyright: ignore[reportAttributeAccessIssue]
+
+        def _ticks_diff(a, b):
+            return a - b
 
 
 def _mul28(a, b):

@@ -62,6 +62,11 @@ _S_MAX = const(24)
 _MAX_DEGREE = const(3)
 _SPAN_LIMIT = const(65535)  # t and raw ranges: half-span <= 2**15 keeps |x| limbs in bound
 _SCALE_RATIO = const(2)  # scale may vary at most 2x over the input range
+_EXT = const(14)  # extra fraction bits of eval_ext(): the scale's rounding, 2**-27 -> 2**-41
+_EXT_MASK = const(0x3FFF)
+_WIDE = const(7)  # update()'s quick division: by the top 20 of the scale value's 27 bits
+_WIDE_MASK = const(0x7F)
+_GAIN_NUM = const(1 << 28)
 
 
 def mul_shift(a, x, h):
@@ -224,12 +229,28 @@ class Poly:
         n = [b[j] * _pow2(h * j) for j in range(len(b))]
         while len(n) > 1 and n[-1] == 0:
             n.pop()
+        # |x| <= rho = half / 2**h (between 1/2 and 1): Horner's partial sums
+        # P_k = sum_{j>=k} n_j x**(j-k) (k >= 1, each fed to mul_shift) and the variable part
+        # V = sum_{j>=1} n_j x**j are bounded by their sums of |n_j| rho**(j-k), not of |n_j|:
+        # up to 3 more fraction bits than the plain sum for a cubic over a span just past 2**h
+        rho = half / _pow2(h)
+        deg = len(n) - 1
+        vb = 0.0
+        for k in range(1, deg + 1):
+            pk = 0.0
+            for j in range(deg, k - 1, -1):
+                pk = pk * rho + abs(n[j])
+            vb = max(vb, pk)
+        vsum = 0.0
+        for j in range(deg, 0, -1):
+            vsum = (vsum + abs(n[j])) * rho
+        vb = max(vb, vsum)
         budget = _pow2(limit) * (1.0 - 1.0 / 1024)  # room for coefficient rounding
-        frac = _fit_frac(sum(abs(v) for v in n), budget, max_frac)
+        frac = _fit_frac(abs(n[0]) + vsum, budget, max_frac)
         # The temperature-dependent part is small next to the constant (a few % of drift), so
         # it gets its own, finer scale: Horner's few units of rounding then land below one
         # unit of the result instead of adding up in it.
-        vfrac = _fit_frac(sum(abs(v) for v in n[1:]), budget, frac + 24)
+        vfrac = _fit_frac(vb, budget, frac + 24)
         if vfrac < frac:
             vfrac = frac  # (cannot happen: the variable part is no larger than the whole)
         self.frac = frac
@@ -237,10 +258,22 @@ class Poly:
         self._mid = mid
         self._h = h
         self._a0 = int(round(n[0] * _pow2(frac)))
+        # the constant again with _EXT more bits, as a0h + a0l / 2**_EXT (0 <= a0l < 2**_EXT),
+        # for eval_ext(); two small ints, no long int even where there are none
+        f0 = n[0] * _pow2(frac)
+        a0h = int(f0 // 1.0)
+        a0l = int(round((f0 - a0h) * _pow2(_EXT)))
+        if a0l >= (1 << _EXT):
+            a0h += 1
+            a0l -= 1 << _EXT
+        self._a0h = a0h
+        self._a0l = a0l
         self._a = (0,) + tuple(int(round(v * _pow2(vfrac))) for v in n[1:])
-        self._deg = len(n) - 1
+        self._deg = deg
         self._vs = vfrac - frac
         self._vr = (1 << (vfrac - frac - 1)) if vfrac > frac else 0
+        self._vm = (1 << (vfrac - frac)) - 1
+        self.ext = 0
         self._coeffs_mid = b  # float coefficients of (t - mid), for set-up checks
 
     def eval(self, t):
@@ -257,6 +290,31 @@ class Poly:
             acc = a[i] + mul_shift(acc, x, h)
         # |variable part| <= sum|a[1:]| <= 2**limit; shifted down to frac and rounded
         return self._a0 + ((mul_shift(acc, x, h) + self._vr) >> self._vs)
+
+    def eval_ext(self, t):
+        """eval(t) with _EXT more bits: returns D and sets self.ext = R, where
+        p(t) * 2**frac ~ D + R / 2**_EXT, 0 <= R < 2**_EXT. Zero allocation."""
+        i = self._deg
+        if i == 0:
+            self.ext = self._a0l
+            return self._a0h
+        a = self._a
+        acc = a[i]
+        x = t - self._mid
+        h = self._h
+        while i > 1:
+            i -= 1
+            acc = a[i] + mul_shift(acc, x, h)
+        v = mul_shift(acc, x, h)  # |v| <= 2**limit, in units of 2**-(frac + vs)
+        vs = self._vs
+        lo = v & self._vm  # 0 <= lo < 2**vs
+        if vs >= _EXT:
+            lo >>= vs - _EXT
+        else:
+            lo <<= _EXT - vs  # < 2**_EXT
+        lo += self._a0l  # < 2**(_EXT + 1)
+        self.ext = lo & _EXT_MASK
+        return self._a0h + (v >> vs) + (lo >> _EXT)
 
     def extrema(self):
         """(min, max) of the float polynomial over t_range (set-up use)."""
@@ -390,11 +448,26 @@ class Compensator:
         self._eo = [0] * n
         # G = gain * 2**(K+S) = 2**(K+S+Fs) / D, with one extra bit for rounding
         self._eg = [K + S + sp.frac + 1 for sp in scs]
+        # update()'s quick division needs the scale value d >= 2**24 over the whole range and
+        # 2**eg / 2**28 / 2**_WIDE >= 1; -1: the plain 3-bit long division
+        self._wg = [-1] * n
+        for k in range(n):
+            sp = scs[k]
+            if sp.extrema()[0] * _pow2(sp.frac) >= _pow2(24) * 1.01:
+                if self._eg[k] - 28 - _WIDE >= 0:
+                    self._wg[k] = self._eg[k] - 28 - _WIDE
         for k in range(n):
             self._set_offset(k, offs[k], ev, t_ref, "offset[%d]" % k)
         self._gh = [0] * n
         self._gl = [0] * n
         self._b = [0] * n
+        # constant-scale axes (most gyros and accelerometers): their gain once here, their
+        # offset term as a polynomial of its own (_set_fast), so update() is Horner only
+        self._fd = [-1] * n  # degree of that polynomial, -1: the scale varies, full update
+        self._fq = [0] * (4 * n)  # its coefficients, 4 per axis
+        self._fs = [0] * n  # its variable part's shift
+        for k in range(n):
+            self._set_fast(k)
         self.clamped = 0
         self._t = None
         # the unrolled 3-axis burst path needs signed int16 raw codes (raw range middle 0)
@@ -409,6 +482,10 @@ class Compensator:
                 self._nk = nk.kernels(self._p3, self._check_n)
             else:
                 self._p3 = [0] * 11
+        if min(self._fd) >= 0:
+            # every scale constant: update() is Horner only
+            self._fill_p3()
+            self.update = self._update_fast
         self.update(self._t_lo)
         if mid != 0:
             # a signed word minus a middle far from 0 may leave |r| <= 2**15
@@ -435,6 +512,45 @@ class Compensator:
         self._off[k] = op
         self._eo[k] = self._s + self._sc[k].frac - op.frac
 
+    def _set_fast(self, k):
+        # For a constant scale d + e/2**14 (eval_ext), B(t) = O(t) * c with the constant
+        # c = 2**eo / (d + e/2**14): q0 = a0 * c and q_j = a_j * c / 2**w, w = eo - L + 1 with
+        # 2**(L-1) <= d < 2**L, so c / 2**w is in (1/2, 1] and the q_j keep the offset
+        # polynomial's Horner bounds (<= 2**28). B = q0 + (Horner(q) >> (vs - w)).
+        sp = self._sc[k]
+        if sp._deg:
+            self._fd[k] = -1
+            return
+        d = sp.eval_ext(0)
+        e = sp.ext
+        g = _gain_num(self._eg[k], d)
+        if e:
+            g -= mul_shift(g, e, _EXT) // d
+        g = (g + 1) >> 1
+        self._gh[k] = g >> self._k
+        self._gl[k] = g & self._kmask
+        op = self._off[k]
+        L = 1
+        while (1 << L) <= d:
+            L += 1
+        j = 4 * k
+        q = div_pow2(op._a0, self._eo[k], d)  # |q| <= 2**29: update()'s offset term bound
+        if e:
+            q -= mul_shift(q, e, _EXT) // d
+        self._fq[j] = q
+        i = 1
+        while i <= op._deg:
+            q = div_pow2(op._a[i], L - 1, d)  # <= |a_i| <= 2**28
+            if e:
+                q -= mul_shift(q, e, _EXT) // d
+            self._fq[j + i] = q
+            i += 1
+        self._fs[k] = op._vs - (self._eo[k] - L + 1)
+        self._fd[k] = op._deg
+        self._fxm = op._mid  # the same t range, so the same x, for every axis
+        self._fxl = _LIMB - op._h if op._h < _LIMB else 0
+        self._fxs = op._h - _LIMB if op._h >= _LIMB else 0
+
     def update(self, t):
         """Set the temperature reading used by apply(); zero allocation."""
         if t < self._t_lo:
@@ -447,13 +563,63 @@ class Compensator:
             return
         self._t = t
         for k in range(self.axes):
-            d = self._sc[k].eval(t)
-            g = (_gain_num(self._eg[k], d) + 1) >> 1
+            f = self._fd[k]
+            if f >= 0:
+                # constant scale: the gain is fixed, the offset term is Horner's (_set_fast)
+                j = 4 * k
+                q = self._fq
+                b = q[j]
+                if f:
+                    op = self._off[k]
+                    x = t - op._mid
+                    h = op._h
+                    acc = q[j + f]
+                    while f > 1:
+                        f -= 1
+                        acc = q[j + f] + mul_shift(acc, x, h)
+                    acc = mul_shift(acc, x, h)
+                    sh = self._fs[k]
+                    # |acc >> sh| or |acc << -sh|: the variable part of B, <= 2**29
+                    b += (acc >> sh) if sh >= 0 else (acc << -sh)
+                self._b[k] = b
+                continue
+            sp = self._sc[k]
+            d = sp.eval_ext(t)
+            e = sp.ext
+            # the scale is d + e / 2**14: 2**e/(d + e') = q * (1 - e'/d + ...) with q = 2**e/d,
+            # so the quotients below drop q * e / (2**14 * d) (at most 2**29 * 2**14 / 2**14 /
+            # 2**24 = 32 units; the second-order term is below 2**-18 units)
+            o = self._off[k].eval(t)
+            wg = self._wg[k]
+            wo = self._eo[k] - _WIDE
+            if wg >= 0 and wo >= 0:
+                # d >= 2**24 here (set-up): divide by its top 20 bits dh in 10-bit steps and
+                # correct for the rest, f / 2**21 of a unit of dh, as for e above (first order:
+                # the second-order term is below 2**29 / 2**34 units)
+                dh = d >> _WIDE
+                f = ((d & _WIDE_MASK) << _EXT) + e
+                g = _div_wide(_GAIN_NUM, wg, dh)  # 2**eg / d, < 2**29
+                if f:
+                    g -= _corr21(g, f, dh)
+                b = _div_wide(o, wo, dh)  # |b| <= 2**29
+                if f:
+                    b -= _corr21(b, f, dh)
+            else:
+                g = _gain_num(self._eg[k], d)  # < 2**29
+                if e:
+                    g -= mul_shift(g, e, _EXT) // d  # mul_shift: 2**29 * 2**14 / 2**14 < 2**30
+                b = div_pow2(o, self._eo[k], d)  # |b| <= 2**29
+                if e:
+                    b -= mul_shift(b, e, _EXT) // d
+            g = (g + 1) >> 1
             self._gh[k] = g >> self._k
             self._gl[k] = g & self._kmask
             # floor, not round: apply()'s floor of r*gl/2**15 errs the other way, so the two
             # truncations partly cancel
-            self._b[k] = div_pow2(self._off[k].eval(t), self._eo[k], d)
+            self._b[k] = b
+        self._fill_p3()
+
+    def _fill_p3(self):
         p = self._p3
         if p is not None:
             j = 0
@@ -464,6 +630,51 @@ class Compensator:
                 j += 3
             p[9] = self._k
             p[10] = self._s
+
+    def _update_fast(self, t):
+        # update() when every scale is constant: the offset terms by Horner (_set_fast's
+        # polynomials, the same arithmetic as update()'s branch for them), mul_shift inline
+        if t < self._t_lo:
+            t = self._t_lo
+            self.clamped += 1
+        elif t > self._t_hi:
+            t = self._t_hi
+            self.clamped += 1
+        if t == self._t:
+            return
+        self._t = t
+        # mul_shift(acc, x, h) with x << (14 - h) when h < 14, so the h >= 14 form serves
+        # both: floor(acc * x * 2**(14-h) / 2**14) = floor(acc * x / 2**h), and |x| <= 2**14
+        x = (t - self._fxm) << self._fxl
+        hs = self._fxs
+        q = self._fq
+        fd = self._fd
+        fs = self._fs
+        bb = self._b
+        p = self._p3
+        half = self._half
+        n = self.axes
+        k = 0
+        j = 0
+        while k < n:
+            f = fd[k]
+            b = q[j]
+            if f:
+                acc = q[j + f]
+                while True:
+                    # |acc| <= 2**28, |x| <= 2**15: each product <= 2**29, the sum < 2**30
+                    acc = ((acc >> _LIMB) * x + (((acc & _LIMB_MASK) * x) >> _LIMB)) >> hs
+                    f -= 1
+                    if not f:
+                        break
+                    acc += q[j + f]
+                sh = fs[k]
+                b += (acc >> sh) if sh >= 0 else (acc << -sh)
+            bb[k] = b
+            if p is not None:
+                p[3 * k + 2] = b - half
+            k += 1
+            j += 4
 
     def apply(self, raw, axis=0):
         """Compensated value of one raw code (inside raw_range) in output units."""
@@ -574,6 +785,7 @@ class Compensator:
         c[0] += float(delta_raw)
         lo, hi = op.t_range
         self._set_offset(axis, c, op.t_range, (lo + hi) // 2, "offset shift %r" % (delta_raw,))
+        self._set_fast(axis)
         t = self._t
         self._t = None
         self.update(t)
@@ -612,6 +824,32 @@ def use_native(on=None):
         raise ValueError("use_native(True): this interpreter has no @micropython.viper emitter")
     _native = None if on is None else bool(on)
     return _native is not False and _kernels() is not None
+
+
+def _div_wide(num, e, d):
+    """floor(num * 2**e / d) for 0 < d < 2**20, |num| <= 2**28, e >= 0, the quotient < 2**29.
+
+    Ten bits a step: the remainder stays below d, so (d - 1) << 10 < 2**30.
+    """
+    q = num // d
+    r = num - q * d
+    while e >= 10:
+        r <<= 10
+        c = r // d
+        r -= c * d
+        q = (q << 10) + c
+        e -= 10
+    if e:
+        r <<= e
+        c = r // d
+        q = (q << e) + c
+    return q
+
+
+def _corr21(q, f, d):
+    # floor(floor(q * f / 2**21) / d) within a unit, |q| < 2**29, 0 <= f < 2**21: the two
+    # mul_shift calls stay < 2**29 + 2**22 (limbs of q: 2**15 * 2**7 << 7 and 2**15 * 2**14)
+    return (mul_shift(q, f >> _EXT, _WIDE) + (mul_shift(q, f & _EXT_MASK, _EXT) >> _WIDE)) // d
 
 
 def _gain_num(e, d):

@@ -494,8 +494,8 @@ class MLX90609:
         return (_CAL_FORMAT,) + table.to_ints() + (q,)
 
     def save(self, store, name="mlx90609"):
-        """Save table and re-zero through a tempcomp.store.Store (store.save(name, ints))."""
-        store.save(name, self.calibration_ints())
+        """Save table and re-zero through a tempcomp.store.Store, as kind KIND_MLX_REZERO (1)."""
+        store.save_record(name, self.calibration_ints(), part="MLX90609", kind=1)
 
     def load(self, store, name="mlx90609"):
         """Re-apply what save() stored (KeyError if never saved; ValueError keeps the old state)."""

@@ -107,6 +107,7 @@ MIN_PACKETS = const(20)
 MAX_PACKETS = const(16000)
 _RETRIES = const(3)
 _T_QUANT = const(8)  # per-sample temperature compensation steps of 8 LSB (~0.024 degC)
+_T_MASK = const(-8)  # t & _T_MASK == t - t % _T_QUANT
 _READS = const(4)  # offsets are re-read until two reads agree, this many times at most
 
 
@@ -164,6 +165,10 @@ class MPU6xxx:
         self._capture = None  # tempcomp.mpu6xxx_cal.Capture, made by the first capture
         self._ca = None
         self._cg = None
+        self._tq = None
+        self._tsens = 1
+        self._tsens2 = 2
+        self._tzero = 0
         self._follow_t = None
         self._target = None
         self._checked = None  # ticks_ms of the last check(every_ms=...)
@@ -410,6 +415,10 @@ class MPU6xxx:
         t_cal = model.t_cal
         self._cg = Compensator(offs_g, [[_GYRO_LSB_DPS / gfs]] * 3, t_cal, out_scale=1000, t_ref=model.t_ref, policy=model.policy)
         self._ca = Compensator(offs_a, [[_ACCEL_LSB_G / afs]] * 3, t_cal, out_scale=1000, t_ref=model.t_ref, policy=model.policy)
+        self._tq = None  # read_compensated's last temperature step
+        self._tsens = self._row[TEMP_SENS]
+        self._tsens2 = 2 * self._tsens
+        self._tzero = self._row[TEMP_ZERO]
 
     def read_compensated(self, out):
         """out[0..2] accel mg, out[3..5] gyro mdps, out[6] degC/100; zero allocation."""
@@ -419,37 +428,43 @@ class MPU6xxx:
             raise ValueError("call compensate(model) first")
         b = self._d14
         self._dev.read_into(_ACCEL_XOUT_H, b)
-        t = _s16(b[6], b[7])
-        tq = t - t % _T_QUANT
-        ca.update(tq)
-        cg.update(tq)
-        i = 0
-        while i < 3:
-            out[i] = ca.apply(_s16(b[2 * i], b[2 * i + 1]), i)
-            out[3 + i] = cg.apply(_s16(b[8 + 2 * i], b[9 + 2 * i]), i)
-            i += 1
-        out[6] = self.temp_c100(t)
+        t = ((b[6] << 8 | b[7]) ^ 0x8000) - 0x8000
+        tq = t & _T_MASK  # t - t % 8, the compensation's temperature step
+        if tq != self._tq:
+            # only when the step changes: a steady part pays for neither update() call
+            ca.update(tq)
+            cg.update(tq)
+            self._tq = tq
+        # both Compensators' 3-axis numbers (fixedpoint's burst path: gain limbs, offset term
+        # with the rounding half, K = 15, S), unrolled as in Compensator._be16_3 and with its
+        # bound: |v*g| <= 2**28, |(v*l) >> 15| < 2**15, |c| <= 2**29 + 2**23
+        g0, l0, c0, g1, l1, c1, g2, l2, c2, k, s = ca._p3  # type: ignore[misc]  # 3 int16 axes
+        v = ((b[0] << 8 | b[1]) ^ 0x8000) - 0x8000
+        out[0] = (v * g0 + ((v * l0) >> k) - c0) >> s
+        v = ((b[2] << 8 | b[3]) ^ 0x8000) - 0x8000
+        out[1] = (v * g1 + ((v * l1) >> k) - c1) >> s
+        v = ((b[4] << 8 | b[5]) ^ 0x8000) - 0x8000
+        out[2] = (v * g2 + ((v * l2) >> k) - c2) >> s
+        g0, l0, c0, g1, l1, c1, g2, l2, c2, k, s = cg._p3  # type: ignore[misc]
+        v = ((b[8] << 8 | b[9]) ^ 0x8000) - 0x8000
+        out[3] = (v * g0 + ((v * l0) >> k) - c0) >> s
+        v = ((b[10] << 8 | b[11]) ^ 0x8000) - 0x8000
+        out[4] = (v * g1 + ((v * l1) >> k) - c1) >> s
+        v = ((b[12] << 8 | b[13]) ^ 0x8000) - 0x8000
+        out[5] = (v * g2 + ((v * l2) >> k) - c2) >> s
+        # temp_c100(t) inline: |2 * t * 10000| <= 6.6e8 < 2**30
+        out[6] = (t * 20000 + self._tsens) // self._tsens2 + self._tzero
 
     def follow(self, model, step_c100=50):
         """Hardware offset(T): re-write the offsets when the temperature moved by step_c100.
 
         Call it periodically with the part awake (asleep, TEMP_OUT does not update); returns
-        True when it wrote (verified, all-or-nothing).
+        True when it wrote (verified, all-or-nothing). (Code in tempcomp.mpu6xxx_tc, the
+        module of ``model``.)
         """
-        if self._dev.read_u8(_USER_CTRL + 1) & 0x40:
-            raise MPUError("the part is asleep (PWR_MGMT_1.SLEEP): its temperature is stale")
-        t = self.temp_raw()
-        step = step_c100 * self._row[TEMP_SENS] // 10000
-        last = self._follow_t
-        if last is not None and abs(t - last) < step:
-            return False
-        g, a = model.targets(t)
-        self.apply(
-            [_clamp_gyro(k, g[k]) for k in range(3)],
-            [_clamp_accel15(k, a[k] >> 1) * 2 for k in range(3)],
-        )
-        self._follow_t = t
-        return True
+        from tempcomp.mpu6xxx_tc import follow
+
+        return follow(self, model, step_c100)
 
     # ---- persistence --------------------------------------------------------------------------
     def to_ints(self):
@@ -489,9 +504,9 @@ class MPU6xxx:
         return self.apply(ints[1:4], ints[4:7])
 
     def save(self, store, name="mpu6xxx"):
-        """store.save(name, to_ints()) with a tempcomp.store.Store, after check()."""
+        """to_ints() into a tempcomp.store.Store, as kind KIND_MPU_POLY (2) for this part, after check()."""
         self.check()
-        store.save(name, self.to_ints())
+        store.save_record(name, self.to_ints(), part=self.part, kind=2)
 
     def restore(self, store, name="mpu6xxx"):
         """Re-apply offsets saved with save() (verified); returns them.

@@ -62,6 +62,34 @@ def _fit(ts, ys, t_ref):
     return _lsq_quadratic(ts, ys, t_ref)
 
 
+def merge_points(points):
+    """Average bias points that share a temperature reading: (points, readings merged).
+
+    Two captures at the same raw temperature happen on a real board when a heater is slower
+    than the session (or the board did not warm at all): they measure the same thing twice, so
+    they are averaged into one point instead of making the fit fail."""
+    groups = {}
+    order = []
+    for p in points:
+        t = int(p[0])
+        if t not in groups:
+            groups[t] = []
+            order.append(t)
+        groups[t].append(p)
+    out = []
+    merged = []
+    for t in order:
+        g = groups[t]
+        if len(g) == 1:
+            out.append(g[0])
+            continue
+        merged.append(t)
+        n = float(len(g))
+        out.append((t, tuple(sum(p[1][k] for p in g) / n for k in range(3)),
+                    tuple(sum(p[2][k] for p in g) / n for k in range(3))))
+    return out, merged
+
+
 class BiasModel:
     """Offset-register values vs raw temperature for the six axes (gyro x y z, accel x y z).
 
@@ -77,7 +105,9 @@ class BiasModel:
         ts = [int(p[0]) for p in pts]
         for i in range(1, len(ts)):
             if ts[i] == ts[i - 1]:
-                raise ValueError("two bias points at the same temperature reading %d" % ts[i])
+                raise ValueError("two bias points at the same temperature reading %d: the temperature did "
+                                 "not move between them; average them with merge_points() or capture "
+                                 "the second after it has changed" % ts[i])
         for p in pts:
             if len(p[1]) != 3 or len(p[2]) != 3:
                 raise ValueError("a bias point is (t_raw, (gx, gy, gz), (ax, ay, az)), got %r" % (p,))
@@ -89,20 +119,28 @@ class BiasModel:
         self.t_cal = (ts[0], ts[-1]) if len(ts) > 1 else (ts[0] - 1, ts[0] + 1)
         ys = [[float(p[1][k]) for p in pts] for k in range(3)] + [[float(p[2][k]) for p in pts] for k in range(3)]
         self.coeffs = [_fit(ts, y, self.t_ref) for y in ys]
+        self._hw = None  # the 6-axis Compensator of targets(): built on first use (docs/ram.md)
+
+    def _hw_comp(self):
         # apply(0, axis) of this compensator = round(value / scale): register LSB for the gyro,
-        # 15-bit field units (2 word LSB) for the accel, whose bit 0 is not ours to set
-        self._hw = Compensator(
-            [[-c for c in cs] for cs in self.coeffs],
-            [[1.0]] * 3 + [[2.0]] * 3,
-            self.t_cal,
-            out_scale=1.0,
-            policy=policy,
-            t_ref=self.t_ref,
-        )
+        # 15-bit field units (2 word LSB) for the accel, whose bit 0 is not ours to set. Only
+        # follow() (hardware offset(T)) needs it: a boot that compensates in software never
+        # builds it.
+        hw = self._hw
+        if hw is None:
+            hw = self._hw = Compensator(
+                [[-c for c in cs] for cs in self.coeffs],
+                [[1.0]] * 3 + [[2.0]] * 3,
+                self.t_cal,
+                out_scale=1.0,
+                policy=self.policy,
+                t_ref=self.t_ref,
+            )
+        return hw
 
     def value(self, axis, t_raw):
         """Float register value of ``axis`` (0..5) at t_raw, as fitted (reference, set-up use)."""
-        lo, hi = self._hw.t_in if self.policy == EXTRAPOLATE else self.t_cal
+        lo, hi = self._hw_comp().t_in if self.policy == EXTRAPOLATE else self.t_cal
         t = min(max(t_raw, lo), hi)
         u = float(t - self.t_ref)
         v = 0.0
@@ -112,7 +150,7 @@ class BiasModel:
 
     def targets(self, t_raw):
         """((gx, gy, gz), (ax, ay, az)) register values for temperature reading t_raw."""
-        hw = self._hw
+        hw = self._hw_comp()
         hw.update(t_raw)
         g = (hw.apply(0, 0), hw.apply(0, 1), hw.apply(0, 2))
         a = (hw.apply(0, 3) * 2, hw.apply(0, 4) * 2, hw.apply(0, 5) * 2)
@@ -143,3 +181,25 @@ class BiasModel:
             r = ints[1 + 7 * i : 8 + 7 * i]
             pts.append((r[0], tuple(v / _FRAC for v in r[1:4]), tuple(v / _FRAC for v in r[4:7])))
         return cls(pts, policy)
+
+
+def follow(imu, model, step_c100=50):
+    # MPU6xxx.follow(): here, beside the model it needs, so a boot that never follows the
+    # temperature in hardware does not load it (docs/ram.md)
+    from tempcomp.mpu6xxx import MPUError, _clamp_accel15, _clamp_gyro
+    from tempcomp.mpu6xxx_parts import TEMP_SENS
+
+    if imu._dev.read_u8(0x6B) & 0x40:  # PWR_MGMT_1.SLEEP (RM-MPU-6000A 4.28)
+        raise MPUError("the part is asleep (PWR_MGMT_1.SLEEP): its temperature is stale")
+    t = imu.temp_raw()
+    step = step_c100 * imu._row[TEMP_SENS] // 10000
+    last = imu._follow_t
+    if last is not None and abs(t - last) < step:
+        return False
+    g, a = model.targets(t)
+    imu.apply(
+        [_clamp_gyro(k, g[k]) for k in range(3)],
+        [_clamp_accel15(k, a[k] >> 1) * 2 for k in range(3)],
+    )
+    imu._follow_t = t
+    return True

@@ -21,7 +21,7 @@ import array
 
 import micropython
 
-_P = 13  # g0 l0 c0 g1 l1 c1 g2 l2 c2 k s, then the batch's stride and a spare word
+_P = 11  # g0 l0 c0 g1 l1 c1 g2 l2 c2 k s: the pure path's list, as 32-bit words
 _BUFFERS = (bytearray, bytes, memoryview)  # built once: a tuple of names in a call allocates
 
 
@@ -80,6 +80,7 @@ class _Batch:
         self.lo = None
         self.tg = 0
 
+    @micropython.native  # the same Python, compiled: about 1,000 fewer instructions a call
     def many(self, buf, out, n, stride=6):
         if n < 1 or stride < 6 or (n - 1) * stride + 6 > len(buf) or 3 * n > len(out):
             self.check(buf, out, n, stride)  # raises unless n == 0 with a good stride

@@ -21,11 +21,14 @@ re-zero, ``MLX90609.save``), ``mpu6xxx`` (offset registers, ``MPU6xxx.save``), `
 (``BiasModel.to_ints``), ``adxrs`` (``AnalogGyro.to_record``).
 """
 
-from tempcomp.adxrs import AnalogGyro
-from tempcomp.mlx90609 import MLX90609
-from tempcomp.mpu6xxx import MPU6xxx
-from tempcomp.mpu6xxx_tc import BiasModel
-from tempcomp.store import Store
+# Each driver is imported when its part is looked for, so a board with one MPU never loads
+# the MLX90609 or analog gyro code (docs/ram.md). The names below are for the type checker.
+TYPE_CHECKING = False
+if TYPE_CHECKING:
+    from tempcomp.adxrs import AnalogGyro  # noqa: F401  (type comments)
+    from tempcomp.mlx90609 import MLX90609  # noqa: F401
+    from tempcomp.mpu6xxx import MPU6xxx  # noqa: F401
+    from tempcomp.mpu6xxx_tc import BiasModel  # noqa: F401
 
 STORE_PATH = "/tempcomp.cal"
 MLX = "mlx90609"
@@ -122,7 +125,8 @@ class Sensors:
         return out
 
     def show(self, n=16):
-        """Print temperature and compensated (uncompensated) rates, deg/s."""
+        """Print temperature and compensated (uncompensated) rates, deg/s; returns None (the REPL
+        would echo a returned dict after the line; ``read(n)`` gives the values)."""
         r = self.read(n)
         parts = []
         t = r.get("temp_c")
@@ -133,7 +137,6 @@ class Sensors:
                 c, u = r[key]
                 parts.append("%s %s (raw %+.3f)" % (key, "--" if c is None else "%+.3f" % c, u))
         print("  ".join(parts))
-        return r
 
 
 def mlx_degc(tc, tempout_mv):
@@ -151,18 +154,28 @@ def open_sensors(board, which=ALL):
             raise ValueError("unknown sensor %r; choose from %s" % (name, ", ".join(ALL)))
     if MPU in which:
         try:
-            s.mpu = MPU6xxx(board.i2c(), getattr(board, "MPU6500_ADDR", 0x68))
+            i2c = board.i2c()
+            from tempcomp.mpu6xxx import MPU6xxx
+
+            s.mpu = MPU6xxx(i2c, getattr(board, "MPU6500_ADDR", 0x68))
         except (OSError, AttributeError) as e:
             s.missing[MPU] = "no MPU-6xxx on I2C: %s" % (e,)
     if MLX in which:
         try:
-            s.mlx = MLX90609(board.spi(), board.mlx_cs())
+            spi = board.spi()
+            cs = board.mlx_cs()
+            from tempcomp.mlx90609 import MLX90609
+
+            s.mlx = MLX90609(spi, cs)
         except (OSError, AttributeError) as e:
             s.missing[MLX] = "no MLX90609 on SPI: %s" % (e,)
     if ADXRS in which:
         try:
-            g = AnalogGyro(board.adc("rate"), board.adc("temp"), board.ADC_VREF_MV,
-                           getattr(board, "ADC_DIVIDER", 1.0))
+            rate = board.adc("rate")
+            temp = board.adc("temp")
+            from tempcomp.adxrs import AnalogGyro
+
+            g = AnalogGyro(rate, temp, board.ADC_VREF_MV, getattr(board, "ADC_DIVIDER", 1.0))
             vt = g.measure(8)[0]
         except (OSError, AttributeError, KeyError) as e:
             s.missing[ADXRS] = "no analog gyro inputs on this board: %s" % (e,)
@@ -181,6 +194,8 @@ def restore(board, path=STORE_PATH, which=ALL, verbose=True):
     uncalibrated and named in the report; a record that does not fit the part raises
     ValueError (the part keeps its present state).
     """
+    from tempcomp.store import Store
+
     s = open_sensors(board, which)
     st = Store(path)
     try:
@@ -196,6 +211,8 @@ def restore(board, path=STORE_PATH, which=ALL, verbose=True):
             mpu.restore(st, MPU)
             s.restored.append(MPU)
         if MPU_TC in names:
+            from tempcomp.mpu6xxx_tc import BiasModel
+
             model = BiasModel.from_ints(st.load(MPU_TC))
             mpu.compensate(model)
             s.model = model

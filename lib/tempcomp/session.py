@@ -13,6 +13,9 @@ It finds the parts (MLX90609, MPU-6xxx, analog gyro), shows the MLX90609 EEPROM 
 2. face: board turned with +x up: a second capture measures the residual on another face;
 3. warm: board left still while it warms (or cools): a bias point every ``step_c`` degrees,
    ``points`` of them, for the MPU's offset(T) and the analog gyro's null(T);
+4. with ``model="/model.json"`` (a file from ``python -m tools gap ... --export`` copied to the
+   board): the exported augmented model is loaded instead of the temperature points or after
+   them (the session asks), checked by building it, and saved as record ``model_name``;
 
 then shows the result (bias per axis, residual, EEPROM health) and saves it to the store.
 After a reset, ONE call re-applies everything: ``tempcomp.session.restore(tempcomp_board)``
@@ -41,8 +44,6 @@ just before each capture (a robot arm, or the virtual board's ``vboard_sensors.w
 import time
 
 from tempcomp import sensors as _sensors
-from tempcomp.mpu6xxx_tc import BiasModel
-from tempcomp.store import Store
 
 
 def _now_ms():
@@ -123,7 +124,7 @@ class Session:
 
     def __init__(self, board, store_path=_sensors.STORE_PATH, which=_sensors.ALL, answers=None,
                  hook=None, pause_s=0, points=3, step_c=5.0, wait_s=900, packets=1000, samples=256,
-                 max_tries=5, max_bias_dps=None, max_residual_dps=1.0):
+                 max_tries=5, max_bias_dps=None, max_residual_dps=1.0, model=None, model_name="gyro_aug"):
         if points < 1:
             raise ValueError("points must be >= 1, got %r" % (points,))
         if not step_c > 0:
@@ -142,6 +143,8 @@ class Session:
         self.max_tries = max_tries
         self.max_bias_dps = max_bias_dps
         self.max_residual_dps = max_residual_dps
+        self.model_path = model  # a MODEL.json from `python -m tools gap ... --export`, on the board
+        self.model_name = model_name
         self._attempts = {}  # hook attempt numbers per step, counted across redo loops
         self.s = _sensors.Sensors(board)  # the parts, found when run() starts
         self.result = {}  # type: dict
@@ -387,7 +390,8 @@ class Session:
             g.set_single(p[0][1], sc)
 
     def run(self):
-        """The whole session; returns the result dict (also in self.result). Saves at the end."""
+        """The whole session; saves at the end. Returns None (the REPL would echo a dict after the
+        report): the result is in ``self.result``."""
         print("tempcomp calibration session")
         s = _sensors.open_sensors(self.board, self.which)
         self.s = s
@@ -414,17 +418,70 @@ class Session:
         try:
             if mpu is not None or mlx is not None:
                 self._zero_and_face()
-            if mpu is not None or s.adxrs is not None:
+            how = self._ask_model()
+            if (mpu is not None or s.adxrs is not None) and how != "i":
                 r["points"] = self._warm()
+            if how in ("i", "a"):
+                self._load_model()
         except Aborted as e:
             print()
             print("session ended: %s; nothing saved" % (e,))
             raise
         self._apply_and_save()
         self._report()
-        return r
+
+    def _ask_model(self):
+        # with an exported model on the board: load it instead of the temperature points, or after
+        if self.model_path is None:
+            return "n"
+        print()
+        print("== Exported model ==")
+        print("%s holds a model from the gap diagnosis (python -m tools gap ... --export)." % self.model_path)
+        while True:
+            a = self.ask("load it [i]nstead of the temperature points, [a]fter them, or [n]ot? [a] ", "a")
+            if a in ("i", "a", "n"):
+                return a
+            if a == "q":
+                raise Aborted("quit at the model step")
+
+    def _load_model(self):
+        # checked by building it as the board will (set-up refuses a model it cannot run)
+        import json
+
+        from tempcomp import augment
+
+        path = self.model_path
+        if path is None:
+            return
+        while True:
+            try:
+                with open(path) as f:
+                    d = json.load(f)
+                st = d["store"]
+                vals = [int(v) for v in st["values"]]
+                fr = [int(v) for v in st["frac"]]
+                augment.Augmented(augment.unpack([vals[i] / (2.0 ** fr[i]) for i in range(len(vals))]))
+                on = []
+                for e in d.get("on_device", []):
+                    if e["name"] not in on:
+                        on.append(e["name"])
+                self.result["model"] = {"name": self.model_name, "values": vals, "frac": fr, "effects": on,
+                                        "not_on_device": [e["name"] for e in d.get("not_on_device", [])]}
+                print("  model: base + %s" % (", ".join(on) or "nothing (the base model)"))
+                return
+            except (OSError, ValueError, KeyError, TypeError, IndexError) as e:
+                print("  ! cannot use %s: %s" % (self.model_path, e))
+            a = self.ask("[r]edo (after fixing the file), [s]kip the model, [q]uit? [r] ", "r")
+            if a == "s":
+                return
+            if a == "q":
+                raise Aborted("quit at the model step")
 
     def _apply_and_save(self):
+        # loaded here, at the end: the session's heap during the captures stays small (docs/ram.md)
+        from tempcomp.mpu6xxx_tc import BiasModel, merge_points
+        from tempcomp.store import Store
+
         s = self.s
         r = self.result
         st = Store(self.store_path)
@@ -444,16 +501,29 @@ class Session:
         pts = r.get("points") or []
         mpts = [x["mpu"] for x in pts if "mpu" in x]
         if mpu is not None and mpts:
+            n = len(mpts)
+            mpts, same = merge_points(mpts)
+            if same:
+                print("  ! %d temperature points had the same MPU temperature reading as another (%s): "
+                      "the temperature did not move between them; averaged, the fit uses %d point(s)" % (
+                          n - len(mpts), ", ".join("%.2f degC" % (mpu.temp_c100(t) / 100.0) for t in same),
+                          len(mpts)))
             model = BiasModel(mpts)
             mpu.compensate(model)
             s.model = model
-            st.save(_sensors.MPU_TC, model.to_ints())
+            st.save_record(_sensors.MPU_TC, model.to_ints(), part=mpu.part, kind=2)  # KIND_MPU_POLY
             saved.append(_sensors.MPU_TC)
         apts = [x for x in pts if "adxrs" in x]
         if s.adxrs is not None and apts:
             self._fit_adxrs(s.adxrs, apts)
-            st.save(_sensors.ADXRS, s.adxrs.to_record())
+            st.save_record(_sensors.ADXRS, s.adxrs.to_record(), kind=3)  # KIND_ADI_3POINT
             saved.append(_sensors.ADXRS)
+        m = r.get("model")
+        if m is not None:
+            from tempcomp.store import KIND_AUGMENT
+
+            st.save_record(m["name"], m["values"], kind=KIND_AUGMENT, frac=m["frac"])
+            saved.append(m["name"])
         r["saved"] = saved
 
     def _report(self):
@@ -493,6 +563,13 @@ class Session:
                 if "adxrs" in x:
                     line += "  analog null %.1f mV at VT %.1f mV" % (x["adxrs"][1], x["adxrs"][0])
                 print(line)
+        m = r.get("model")
+        if m is not None:
+            print("augmented model: base + %s%s; on the board: tempcomp.augment.Augmented("
+                  "tempcomp.augment.from_store(Store(%r), %r))" % (
+                      ", ".join(m["effects"]) or "nothing",
+                      " (not on the board: %s)" % ", ".join(m["not_on_device"]) if m["not_on_device"] else "",
+                      self.store_path, m["name"]))
         print("saved to %s: %s" % (self.store_path, ", ".join(r.get("saved") or ()) or "nothing"))
         print("after a reset: import tempcomp_board, tempcomp.session; "
               "s = tempcomp.session.restore(tempcomp_board)")

@@ -112,8 +112,6 @@ _HDR = const(16)
 _ENTRY = const(28)  # fixed part of an entry, "<HBBBBBBHHiiII"
 _CRC = const(4)
 _MIN_IMAGE = const(20)
-_INT32_MIN = -2147483648  # not const(): beyond the 32-bit small-int range
-_INT32_MAX = 2147483647
 
 # slot states
 _OK = const(0)
@@ -177,27 +175,15 @@ def _crc(data):
     return _crc32(data) & 0xFFFFFFFF
 
 
-def _check_int32(what, v):
-    if not isinstance(v, int) and not isinstance(v, float):
-        index = getattr(v, "__index__", None)  # e.g. numpy integers on the host
-        if index is not None:
-            v = index()
-    if not isinstance(v, int):
-        raise ValueError("%s = %r is not an int" % (what, v))
-    if not _INT32_MIN <= v <= _INT32_MAX:
-        raise ValueError("%s = %d is outside int32 (-2147483648..2147483647)" % (what, v))
-    return v
-
-
 def _pow2(f):
     return float(1 << f) if f >= 0 else 1.0 / (1 << -f)
 
 
 def fixed(x, frac):
     """round(x * 2**frac) as an int, checked to fit int32 (ValueError otherwise)."""
-    if not FRAC_MIN <= frac <= FRAC_MAX:
-        raise ValueError("frac %r outside %d..%d" % (frac, FRAC_MIN, FRAC_MAX))
-    return _check_int32("fixed(%r, %d)" % (x, frac), round(x * _pow2(frac)))
+    from tempcomp import store_write  # set-up only: the boot's reader does without it
+
+    return store_write.fixed(x, frac)
 
 
 class Record:
@@ -345,35 +331,6 @@ def _one_bit_off(head):
             d += x & 1
             x >>= 1
     return d == 1
-
-
-def _salvage(buf):
-    # What a damaged copy's header and entries still say: (generation, record names, all names
-    # read?). Only to tell the user what a corrupt newest copy took with it; never trusted as data.
-    n = len(buf)
-    if n < _HDR:
-        return 0, [], False
-    count = struct.unpack_from("<H", buf, 6)[0]
-    length = struct.unpack_from("<I", buf, 8)[0]
-    gen = struct.unpack_from("<I", buf, 12)[0]
-    names = []
-    off = _HDR
-    for _ in range(count):
-        if off + _ENTRY > n:
-            return gen, names, False
-        e = struct.unpack_from("<HBBBBBBH", buf, off)
-        if not e[3] or e[0] != _entry_size(e[3], e[4], e[5], e[7]) or off + e[0] > n:
-            return gen, names, False
-        try:
-            names.append(_text(buf, off + _ENTRY, e[3], 0x20))
-        except ValueError:
-            return gen, names, False
-        # a save's record carries its generation too: one flipped bit cannot lower both
-        c = struct.unpack_from("<I", buf, off + 20)[0]
-        if c > gen:
-            gen = c
-        off += e[0]
-    return gen, names, off + _CRC in (length, n)  # else the count is wrong: names may be missing
 
 
 class Store:
@@ -531,7 +488,9 @@ class Store:
             elif st != _BLANK and not scratch:
                 problems.append("%s %s" % (labels[i], why))
                 if st == _DAMAGED:
-                    damaged.append((len(problems) - 1, labels[i], why) + _salvage(buf))
+                    from tempcomp.store_salvage import salvage
+
+                    damaged.append((len(problems) - 1, labels[i], why) + salvage(buf))
         self._damaged = damaged
         return best, (states, whys), best_recs, best_gen, problems, newer
 
@@ -567,20 +526,14 @@ class Store:
             if best >= 0:
                 msg = "%s; using %s (generation %d)" % (p, self._labels()[best], gen)
                 if i == lost_at:
-                    msg += "; " + self._lost_names()
+                    from tempcomp.store_salvage import lost_names
+
+                    msg += "; " + lost_names(self._lost)
             else:
                 msg = "%s; no calibration stored" % p
             self.warnings.append(msg)
             _warn(msg)
         return best, states, recs, gen
-
-    def _lost_names(self):
-        lost = self._lost
-        if lost is None:
-            return ""
-        names = ", ".join(repr(x) for x in lost[3]) or "none"
-        return "records only it held (lost): %s%s" % (
-            names, "" if lost[4] else " (and maybe more: its entries are unreadable past that)")
 
     def _set_cache(self, recs, gen):
         index = {}
@@ -617,11 +570,10 @@ class Store:
         """The loaded Record for name; ValueError if it is for another part or kind."""
         index = self._ensure()
         if name not in index:
-            lost = self._lost
-            if lost is not None:
-                raise StoreError("%r is not in the copy in use (generation %d): the newest copy of the "
-                                 "store (%s, generation %d) %s; %s" % (
-                                     name, self.generation, lost[0], lost[2], lost[1], self._lost_names()))
+            if self._lost is not None:
+                from tempcomp.store_salvage import lost_error
+
+                raise lost_error(self, name)
             raise KeyError("%r was never saved in %r" % (name, self))
         r = index[name]
         if part is not None and r.part != part:

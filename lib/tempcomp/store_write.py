@@ -25,9 +25,9 @@ from tempcomp.store import (
     ReadOnlyStoreError,
     Record,
     StoreError,
-    _check_int32,
     _crc,
     _entry_size,
+    _pow2,
 )
 
 try:
@@ -44,6 +44,8 @@ _HDR = const(16)
 _ENTRY = const(28)  # fixed part of an entry, "<HBBBBBBHHiiII"
 _CRC = const(4)
 _MAX_IMAGE = const(65536)
+_INT32_MIN = -2147483648  # not const(): beyond the 32-bit small-int range
+_INT32_MAX = 2147483647
 _UINT32_MAX = 4294967295
 _UNIX_2000 = 946684800  # 2000-01-01 in UTC seconds since 1970
 _RTC_SET_YEAR = const(2024)  # an RTC reading before this year is taken as "clock not set"
@@ -79,6 +81,25 @@ def _find(recs, name):
         if recs[i].name == name:
             return i
     return -1
+
+
+def _check_int32(what, v):
+    if not isinstance(v, int) and not isinstance(v, float):
+        index = getattr(v, "__index__", None)  # e.g. numpy integers on the host
+        if index is not None:
+            v = index()
+    if not isinstance(v, int):
+        raise ValueError("%s = %r is not an int" % (what, v))
+    if not _INT32_MIN <= v <= _INT32_MAX:
+        raise ValueError("%s = %d is outside int32 (-2147483648..2147483647)" % (what, v))
+    return v
+
+
+def fixed(x, frac):
+    """round(x * 2**frac) as an int, checked to fit int32 (ValueError otherwise)."""
+    if not FRAC_MIN <= frac <= FRAC_MAX:
+        raise ValueError("frac %r outside %d..%d" % (frac, FRAC_MIN, FRAC_MAX))
+    return _check_int32("fixed(%r, %d)" % (x, frac), round(x * _pow2(frac)))
 
 
 def _check_text(what, s, hi, lo, first):

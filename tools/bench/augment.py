@@ -1,14 +1,15 @@
-"""`make bench` figures of the augmented model (lib/tempcomp/augment.py) in the real MicroPython
-VM: time per 3-axis sample of the base model and of each term the gap diagnosis can add, as
-ratios to the unpack floor measured in the same run; bytes allocated per sample with every term
-on; the worst error against float64 (tools/simgap/devmodel.py) with every term on."""
+"""`make bench` figures of the augmented model (lib/tempcomp/augment.py): per-sample cost of the
+base model and of each term the gap diagnosis can add, as executed instructions on the
+MicroPython 1.27 firmware for a Cortex-M3 (qemu -icount: exact, whatever the host's load; the
+VM's time ratios to the unpack floor when the firmware is not built); bytes allocated per sample
+and the worst error against float64 (tools/simgap/devmodel.py) with every term on, in the VM."""
 
 import json
 import time
 
 import numpy as np
 
-from tools.firmware import mpvm
+from tools.firmware import interp, mpvm
 from tools.simgap import devmodel, replay
 
 BASE = {"t_lsb": 0.01, "t_off": 0.0, "raw_lsb": 1.0, "raw_range": [-32768, 32767], "out_scale": 100.0,
@@ -109,10 +110,106 @@ for k in best:
 """
 
 
+FW_BENCH = r"""
+import time
+from array import array
+from tempcomp.augment import Augmented
+pad = bytearray(%(pad)d)  # moves the objects: the attribute caches then hit differently
+a = Augmented(%(model)s)
+raw = array('i', [1200, -800, 300]); out = array('i', [0, 0, 0]); acc = array('i', [100, -300, 950])
+ap = a.apply
+buf = bytearray(b"\x80\x00\x12\x34\x7f\xff")
+
+def unpack(buf, o):
+    v = buf[0] << 8 | buf[1]
+    if v & 0x8000:
+        v -= 0x10000
+    o[0] = v
+    v = buf[2] << 8 | buf[3]
+    if v & 0x8000:
+        v -= 0x10000
+    o[1] = v
+    v = buf[4] << 8 | buf[5]
+    if v & 0x8000:
+        v -= 0x10000
+    o[2] = v
+
+def run(n, mask):
+    i = 0
+    t0 = time.ticks_us()
+    while i < n:
+        ap(2500 + (i & mask), raw, out, 1000, 3300, acc)
+        i += 1
+    return time.ticks_diff(time.ticks_us(), t0)
+
+def floor(n):
+    i = 0
+    t0 = time.ticks_us()
+    while i < n:
+        unpack(buf, out)
+        i += 1
+    return time.ticks_diff(time.ticks_us(), t0)
+
+def empty(n):
+    i = 0
+    t0 = time.ticks_us()
+    while i < n:
+        i += 1
+    return time.ticks_diff(time.ticks_us(), t0)
+
+N = %(n)d
+run(4, 63)
+e = empty(N)
+print('INSN', (floor(N) - e) * 1000 // N, (run(N, 0) - e) * 1000 // N, (run(N, 63) - e) * 1000 // N)
+"""
+
+
+PADS = (0, 700, 2100, 4900, 9100)
+
+
+def firmware_costs(models, n=200):
+    """{name: (floor, constant reading, changing reading)} instructions per sample on the
+    Cortex-M3 firmware, each the median over PADS heap layouts (MicroPython's attribute-lookup
+    caches make one layout's count differ from another's by up to a third), and
+    {name: (lo, hi)} of the constant-reading count; (None, reason) when it is not built."""
+    why = interp.missing("an385")
+    if why:
+        return None, None, why
+    res, spread = {}, {}
+    with interp.open_interp("an385") as it:
+        for name, m in models:
+            runs = []
+            for pad in PADS:
+                out = it.run(FW_BENCH % {"model": json.dumps(m), "n": n, "pad": pad}, timeout=600)
+                line = [ln for ln in out.splitlines() if ln.startswith("INSN ")][0]
+                runs.append(tuple(int(v) for v in line.split()[1:]))
+            res[name] = tuple(int(np.median([r[k] for r in runs])) for k in range(3))
+            spread[name] = (min(r[1] for r in runs), max(r[1] for r in runs))
+    return res, spread, None
+
+
 def bench(report):
     t0 = time.time()
     names = ["base"] + list(TERMS) + ["every term"]
     models = [("base", model([]))] + [(n, model([n])) for n in TERMS] + [("every term", model(list(TERMS)))]
+    fw, spread, why = firmware_costs(models)
+    if fw is not None:
+        fl = fw["base"][0]
+        report("augment: base model per 3-axis sample (Cortex-M3 firmware, reading unchanged)", fw["base"][1],
+               "instructions (%.1fx the unpack floor; %d..%d over %d heap layouts)"
+               % (fw["base"][1] / fl, spread["base"][0], spread["base"][1], len(PADS)))
+        report("augment: same, temperature reading changing every sample", fw["base"][2],
+               "instructions (%.1fx)" % (fw["base"][2] / fl))
+        for n in names[1:]:
+            report("augment: + %s, extra per sample" % n, fw[n][1] - fw["base"][1],
+                   "instructions (%.1fx the floor; total %d..%d)" % ((fw[n][1] - fw["base"][1]) / fl,
+                                                                     spread[n][0], spread[n][1]))
+        report("augment: every term, reading changing every sample", fw["every term"][2],
+               "instructions (%.1fx)" % (fw["every term"][2] / fl))
+        report("augment: Cortex-M3 firmware run wall time", time.time() - t0, "s")
+        _vm_precision(report, time.time())
+        return
+    report("augment: Cortex-M3 firmware not available (%s); VM time ratios instead" % why, "", "")
     out = mpvm.run(VM_BENCH % dict(models=json.dumps(models), n=3000, reps=3), heap="4m", timeout=900)
     times = {}
     for line in out.splitlines():
@@ -125,6 +222,10 @@ def bench(report):
     for n in names[1:]:
         report("augment: + %s, extra per sample / unpack floor" % n, (times[n] - times["base"]) / fl, "x")
     report("augment: every term, temperature changing every sample / unpack floor", times["every term+t"] / fl, "x")
+    _vm_precision(report, t0)
+
+
+def _vm_precision(report, t0):
     # every term on: zero allocation and precision against float64 over a generated run
     m = model(list(TERMS))
     rng = np.random.default_rng(5)

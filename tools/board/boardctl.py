@@ -24,6 +24,7 @@ import subprocess
 import sys
 import tempfile
 import threading
+import time
 
 from tools import REPO
 
@@ -116,6 +117,18 @@ class Remote:
 
     def mpremote(self, *args, timeout=120):
         cmd = [sys.executable, "-m", "mpremote", "connect", self.port] + list(args)
+        for attempt in range(5):
+            out, err, code = self._mpremote(cmd, timeout)
+            # the virtual board takes one client at a time and refuses a connection until it has
+            # read the previous command's close (nothing was sent: running it again is safe)
+            if not (code == 1 and "failed to access" in err and self.port.startswith("socket://")):
+                break
+            time.sleep(0.2 * (attempt + 1))
+        if code != 0:
+            raise BoardError("mpremote %s failed (exit %d):\n%s\n%s" % (" ".join(args[:2]), code, out[-3000:], err[-3000:]))
+        return out
+
+    def _mpremote(self, cmd, timeout):
         if self.echo is None:
             r = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, cwd=REPO)
             out = r.stdout
@@ -142,9 +155,7 @@ class Remote:
             finally:
                 timer.cancel()
             out = "".join(chunks)
-        if code != 0:
-            raise BoardError("mpremote %s failed (exit %d):\n%s\n%s" % (" ".join(args[:2]), code, out[-3000:], err[-3000:]))
-        return out
+        return out, err, code
 
     def run(self, code, timeout=120):
         """Run Python source on the board (mpremote run of a temporary file); returns its output."""

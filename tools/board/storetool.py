@@ -161,6 +161,8 @@ def newest(copies, nvm=False):
     for label, data in copies:
         if data is None:
             continue
+        if nvm and data.count(0xFF) == len(data):
+            continue  # an erased slot (json2bin --nvm writes one): empty, not damaged
         try:
             doc = decode_image(data, slot=nvm)
         except FormatError as e:
@@ -313,14 +315,15 @@ def export_text(doc):
     return "\n".join(lines) + "\n"
 
 
-def put(path, model_path, name, part=""):
+def put(path, model_path, name, part="", base=False):
     """Add the exported model's store values as record `name` (kind augment) to the store at
-    path, keeping every other record; a new generation, written only once it checks."""
+    path, keeping every other record; a new generation, written only once it checks. base=True
+    stores the sim alone (the model's "store_base") for before/after comparisons on the board."""
     import os
 
     model = hostio.load_json(model_path)
-    st = model.get("store") if isinstance(model, dict) else None
-    if not isinstance(st, dict) or "values" not in st:
+    st = model.get("store_base" if base else "store") if isinstance(model, dict) else None
+    if not isinstance(st, dict) or "values" not in st or "frac" not in st:
         raise hostio.HostError("%s: no 'store' section; write the model with python -m tools gap ... --export"
                                % model_path)
     if os.path.exists(path):
@@ -368,10 +371,11 @@ def main(argv=None):
     p.add_argument("model", help="MODEL.json from python -m tools gap ... --export")
     p.add_argument("--name", required=True, help="record name the board loads it by")
     p.add_argument("--part", default="", help="part name kept with the record")
+    p.add_argument("--base", action="store_true", help="store the model's base (the sim alone) instead")
     a = ap.parse_args(argv)
     try:
         if a.cmd == "put":
-            return put(a.store, a.model, a.name, a.part)
+            return put(a.store, a.model, a.name, a.part, a.base)
         if a.cmd != "dump":
             hostio.check_output(a.out)
         if a.cmd == "json2bin":

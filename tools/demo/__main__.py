@@ -30,7 +30,10 @@ from tools.board.boardctl import BoardError, Remote, VirtualBoard  # noqa: E402
 OUT = os.path.join(REPO, "out")
 TIME_SCALE = 4  # simulated seconds per second: the thermal steps pass four times faster
 ROOM_C = 20.0
-HEAT = [(0, ROOM_C), (2, ROOM_C), (32, 50.0)]  # the session's heater, from when it is switched on
+# the session's heater, from when it is switched on; board seconds (x4), which pass with what the
+# board does (bus transfers, sleeps), not with the host's clock: the first point's captures
+# (about 3 s of them) are over before it warms
+HEAT = [(0, ROOM_C), (6, ROOM_C), (36, 50.0)]
 SWEEP = [(0, ROOM_C), (2, ROOM_C), (22, 48.0), (26, 48.0), (46, ROOM_C)]  # the chamber afterwards
 SWEEP_S = 46
 SPIN_DPS = 20.0  # the turntable during the sweep: about z, the MLX90609's and analog gyro's axis
@@ -83,7 +86,7 @@ s.show()
 """
 
 SWEEP_VIRTUAL = r"""
-import tempcomp_board, vboard_sensors, vboard
+import time, tempcomp_board, vboard_sensors, vboard
 from tempcomp.session import restore
 s = restore(tempcomp_board, verbose=False)
 w = vboard_sensors.world
@@ -94,6 +97,7 @@ clock = vboard.board.clock_ms
 t0 = clock()
 while clock() - t0 < %(secs)d * 1000:
     r = s.read(8)
+    time.sleep_ms(40)  # a reading every 40 ms of board time (160 ms of the chamber's, x4)
     print("ROW", repr(((clock() - t0) / 1000, w.temperature_c(), r)))
 """
 
@@ -128,16 +132,34 @@ class Echo:
         self.tty = sys.stdout.isatty()
         self.line = ""
         self.cr = False
+        self.held = False
+
+    HIDDEN = ("ROW ", "STATE ")  # values the demo parses, not for the reader
 
     def __call__(self, c):
         if self.tty:
-            sys.stdout.write(c)
+            # live, but a line that starts as a hidden one is held until it is known
             if c == "\n":
+                if not self.line.startswith(self.HIDDEN):
+                    sys.stdout.write((self.line if self.held else "") + c)
+                self.line = ""
+                self.held = False
                 sys.stdout.flush()
+                return
+            self.line += c
+            if self.line.startswith(self.HIDDEN):
+                return
+            if any(h.startswith(self.line) for h in self.HIDDEN):
+                self.held = True
+                return
+            sys.stdout.write(self.line if self.held else c)
+            self.held = False
+            if c == "\r":
+                self.line = ""
             return
         # a log keeps the last state of each progress line only
         if c == "\n":
-            if self.line.strip() and not self.line.startswith("ROW "):
+            if self.line.strip() and not self.line.startswith(self.HIDDEN):
                 sys.stdout.write(self.line.rstrip() + "\n")
                 sys.stdout.flush()
             self.line = ""
@@ -237,7 +259,8 @@ def gap_diagnosis():
         say("could not convert the logs in %s, skipping the diagnosis:\n%s" % (d, conv.stderr.strip()[-2000:]))
         return None
     cmd = [py, "-m", "tools.simgap", train, "--withheld", os.path.join(real, "tofupilot_gyro_withheld.csv"),
-           "--json", os.path.join(real, "tofupilot_gyro.json"), "--plot", os.path.join(real, "tofupilot_gyro.png")]
+           "--json", os.path.join(real, "tofupilot_gyro.json"), "--plot", os.path.join(real, "tofupilot_gyro.png"),
+           "--export", os.path.join(real, "tofupilot_gyro_model.json")]
     say("+ python -m tools.simgap %s" % " ".join(os.path.relpath(a, REPO) if a.startswith(REPO) else a for a in cmd[3:]))
     r = subprocess.run(cmd, cwd=REPO, capture_output=True, text=True)
     say(r.stdout.rstrip())
@@ -277,6 +300,8 @@ def main(argv=None):
                 port, "1.27", os.path.relpath(vb.flash, REPO)))
             say("  sensors: MPU-6500 on I2C0, MLX90609 on SPI0 (CS GP17), analog gyro on ADC 26/27;"
                 " time runs x%d" % TIME_SCALE)
+            say("  scenario: a steady %g degC room (VBOARD_PROFILE), then the session's heater and the"
+                " sweep's chamber" % ROOM_C)
             done.append("started the virtual board (%s)" % port)
         else:
             port = a.port
@@ -376,7 +401,18 @@ def main(argv=None):
         done.append("diagnosed a real IMU log: the temperature model misses %s (%s)" % (
             ", ".join(verdict) or "nothing above the noise floor", os.path.relpath(gap_png, REPO)))
 
-    header(9, "summary")
+    header(9, "the diagnosis on the board: export, store, restore, before/after on the withheld part")
+    if gap_png:
+        from tools.demo import augment
+        try:
+            line = augment.run(say, os.path.dirname(gap_png))
+        except BoardError as e:
+            line = None
+            say("the board step failed: %s" % e)
+        if line:
+            done.append(line)
+
+    header(10, "summary")
     for line in done:
         say(" - " + line)
     say("took %.0f s; plot: %s" % (time.time() - t_start, os.path.relpath(png, REPO)))

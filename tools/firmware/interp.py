@@ -14,9 +14,11 @@ Interpreters (``INTERPRETERS``):
 
 Every script sees the same filesystem: ``lib/`` at ``/lib`` and ``host_tests/device/`` at
 ``/vmtest``, both on ``sys.path``, plus ``mounts`` (``"HOSTDIR:/VMDIR"``) and ``paths`` as
-``mpvm.run`` takes them. On the firmware the host directory is served over the UART by mpremote's
-mount protocol (the boards have no filesystem of their own), so reads come from the host as the
-script runs and writes land in the host directory. The firmware runs under ``-icount shift=0``:
+``mpvm.run`` takes them. The boards have no filesystem of their own: lib/, host_tests/device/ and
+tools/sim/ are ROMFS images (``vfs.VfsRom``, as ``mpremote romfs`` deploys) loaded into the board's
+spare RAM at boot and mounted where the script expects them; anything else (``tmp_path`` mounts, the
+root) is served over the UART by mpremote's mount protocol, so writes land in the host directory.
+The firmware runs under ``-icount shift=0``:
 ``time.ticks_us()`` then advances one microsecond per 1000 executed instructions (1 ns each).
 
 On the firmware the repository's directories (lib/, host_tests/device/, mounted tools/ folders) are
@@ -31,6 +33,7 @@ import os
 import re
 import select
 import shutil
+import signal
 import subprocess
 import tempfile
 import time
@@ -130,12 +133,73 @@ def mpy_tree(src):
     return dst_root
 
 
+# Spare RAM of both MPS2 boards' 4 MB SSRAM1: the firmware's image, heap and bss sit at the bottom
+# (checked against the ELF) and its stack hangs from the 4 MB top (ports/qemu mps2.ld), so ROMFS
+# images go between.
+ROM_BASE = 0x00100000
+ROM_END = 0x00380000
+
+
+def _elf_end(path):
+    """The highest address an ELF32 image's loadable segments (bss included) occupy."""
+    import struct
+    with open(path, "rb") as f:
+        hdr = f.read(52)
+        if hdr[:4] != b"\x7fELF" or hdr[4] != 1:
+            raise InterpError("%s is not a 32-bit ELF file" % path)
+        phoff, = struct.unpack_from("<I", hdr, 28)
+        phentsize, phnum = struct.unpack_from("<HH", hdr, 42)
+        end = 0
+        for i in range(phnum):
+            f.seek(phoff + i * phentsize)
+            ptype, _off, vaddr, _paddr, _filesz, memsz = struct.unpack("<6I", f.read(24))
+            if ptype == 1 and vaddr < 0x01000000:  # PT_LOAD in SSRAM1
+                end = max(end, vaddr + memsz)
+    return end
+
+
+def _tree_stamp(dirs):
+    out = []
+    for d in dirs:
+        for root, ds, files in os.walk(d, followlinks=True):
+            ds[:] = sorted(x for x in ds if x != "__pycache__")
+            for f in sorted(files):
+                st = os.stat(os.path.join(root, f))
+                out.append((root, f, st.st_mtime_ns, st.st_size))
+    return out
+
+
+def _romfs_image(tree):
+    """A ROMFS image (mpremote's writer, as ``mpremote romfs build``) of a directory."""
+    from mpremote.romfs import VfsRomWriter
+    w = VfsRomWriter()
+
+    def walk(d):
+        for name in sorted(os.listdir(d)):
+            p = os.path.join(d, name)
+            if os.path.isdir(p):
+                if name != "__pycache__":
+                    w.opendir(name)
+                    walk(p)
+                    w.closedir()
+            elif not name.endswith(".pyc"):
+                with open(p, "rb") as f:
+                    w.mkfile(name, f.read())
+    walk(tree)
+    return bytes(w.finalise())
+
+
+# repository directories the firmware gets as ROMFS images rather than over the UART
+ROM_SOURCES = (os.path.join(REPO, "lib"), VM_TEST_DIR, os.path.join(REPO, "tools", "sim"))
+
+
 class _Staged:
     """A host directory laid out as the script's filesystem root, made of symlinks."""
 
     def __init__(self):
         self.root = tempfile.mkdtemp(prefix="tempcomp-fs-")
         self.layout = None
+        self.sources = []
 
     def lay_out(self, mounts, mpy=False):
         layout = [(os.path.join(REPO, "lib"), "/lib"), (VM_TEST_DIR, "/vmtest")]
@@ -144,6 +208,7 @@ class _Staged:
             if not host or not vm.startswith("/") or vm == "/":
                 raise ValueError("bad mount %r: want HOSTDIR:/VMDIR" % m)
             layout.append((os.path.abspath(host), vm.rstrip("/")))
+        self.sources = layout  # before compiling: which repository directory is where
         if mpy:
             layout = [(mpy_tree(h) if os.path.isdir(h) and h.startswith(REPO + os.sep) else h, v)
                       for h, v in layout]
@@ -198,6 +263,55 @@ class WasmInterp(_Base):
             raise InterpError("[wasm] %s" % e) from None
 
 
+# The unix port's "/" becomes the staged directory. Not VfsPosix(root): CircuitPython 10.2.1's
+# VfsPosix with a root builds both rename() paths in one buffer (the first is lost). A Python VFS
+# that prefixes every path itself and hands the plain VfsPosix whole host paths.
+_HOST_ROOT = """import os
+class _HostRoot:
+    def __init__(self, root):
+        self.root = root
+        self.cwd = "/"
+        self.fs = os.VfsPosix()
+    def _p(self, path):
+        if not path.startswith("/"):
+            path = self.cwd + path
+        return self.root + path
+    def mount(self, readonly, mkfs):
+        pass
+    def umount(self):
+        pass
+    def chdir(self, path):
+        if not path.startswith("/"):
+            path = self.cwd + path
+        if not path.endswith("/"):
+            path += "/"
+        self.fs.stat(self.root + path)
+        self.cwd = path
+    def getcwd(self):
+        return self.cwd if self.cwd == "/" else self.cwd[:-1]
+    def open(self, path, mode):
+        return self.fs.open(self._p(path), mode)
+    def stat(self, path):
+        return self.fs.stat(self._p(path))
+    def statvfs(self, path):
+        return self.fs.statvfs(self._p(path))
+    def ilistdir(self, path):
+        return self.fs.ilistdir(self._p(path))
+    def remove(self, path):
+        self.fs.remove(self._p(path))
+    def rename(self, old, new):
+        self.fs.rename(self._p(old), self._p(new))
+    def mkdir(self, path):
+        self.fs.mkdir(self._p(path))
+    def rmdir(self, path):
+        self.fs.rmdir(self._p(path))
+os.umount("/")
+os.mount(_HostRoot(%r), "/")
+os.chdir("/")
+del os, _HostRoot
+"""
+
+
 class UnixInterp(_Base):
     """A unix-port interpreter (CircuitPython's coverage build): a fresh process per run, its
     filesystem root replaced by the staged directory (VfsPosix mounted at /)."""
@@ -208,7 +322,7 @@ class UnixInterp(_Base):
 
     def run(self, code, mounts=(), paths=(), timeout=300, mpy=None):  # noqa: ARG002 (firmware only)
         self.fs.lay_out(mounts)
-        pre = "import os\nos.umount('/')\nos.mount(os.VfsPosix(%r), '/')\nos.chdir('/')\ndel os\n" % self.fs.root
+        pre = _HOST_ROOT % self.fs.root
         env = dict(os.environ, MICROPYPATH="")
         try:
             proc = subprocess.run([self.exe, "-X", "heapsize=" + self.heap, "-c", pre + _prologue(paths) + code],
@@ -232,24 +346,64 @@ class QemuInterp(_Base):
     """MicroPython firmware on an emulated MPS2 board: booted once, soft-reset before every run."""
 
     def __init__(self, name, boot_timeout=30, mpy=True):
-        import serial  # noqa: F401  (pyserial: mpremote's transport)
-        from mpremote.transport_serial import SerialTransport
         self.name = name
+        self.elf = binary(name)  # fixed now: a caller may point FW_DIR elsewhere for this instance
         self.mpy = mpy
+        self.boot_timeout = boot_timeout
         self.fs = _Staged()
-        self.proc = subprocess.Popen(
-            ["qemu-system-arm", "-machine", QEMU_MACHINE[name], "-nographic", "-monitor", "null",
-             "-semihosting", "-serial", "pty", "-icount", "shift=0", "-kernel", binary(name)],
-            stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
-        self.pty = None
+        self.rom_dir = tempfile.mkdtemp(prefix="tempcomp-rom-")
+        self.proc = None
         self.transport = None
+        self._boot()
+
+    def _boot(self):
+        """Start qemu with lib/, host_tests/device/ and tools/sim/ as ROMFS images (.mpy and .py
+        flavours) in the board's spare RAM, read in place by vfs.VfsRom: no UART round trips and
+        no heap for the files' bytes. Rebooted when one of them changes."""
+        from mpremote.transport_serial import SerialTransport
+        self.roms, self.rom_stamp = {}, _tree_stamp(ROM_SOURCES)
+        cmd = ["qemu-system-arm", "-machine", QEMU_MACHINE[self.name], "-nographic", "-monitor", "null",
+               "-semihosting", "-serial", "pty", "-icount", "shift=0", "-kernel", self.elf]
+        addr = max(ROM_BASE, (_elf_end(self.elf) + 0xFFFF) & ~0xFFFF)
+        for i, src in enumerate(ROM_SOURCES):
+            for mpy in (True, False):
+                img = _romfs_image(mpy_tree(src) if mpy else src)
+                if addr + len(img) > ROM_END:
+                    raise InterpError("ROMFS images exceed the board's spare RAM (%d bytes)" % (ROM_END - ROM_BASE))
+                path = os.path.join(self.rom_dir, "%d%s.romfs" % (i, "mpy" if mpy else "py"))
+                with open(path, "wb") as f:
+                    f.write(img)
+                cmd += ["-device", "loader,file=%s,addr=0x%x,force-raw=on" % (path, addr)]
+                self.roms[src, mpy] = (addr, len(img))
+                addr = (addr + len(img) + 0xFFF) & ~0xFFF
+        self.proc = subprocess.Popen(cmd, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
+                                     stderr=subprocess.STDOUT)
         try:
-            self.pty = self._read_pty(boot_timeout)
+            self.pty = self._read_pty(self.boot_timeout)
             self.transport = SerialTransport(self.pty, baudrate=115200, exclusive=False)
             self.transport.enter_raw_repl(soft_reset=False)
         except BaseException:
             self.close()
             raise
+
+    def _stop(self):
+        self._pause(False)  # a stopped process would hold its SIGTERM
+        if self.transport is not None:
+            try:
+                self._unmount()
+                self.transport.close()
+            except Exception:
+                pass
+            self.transport = None
+        if self.proc is not None and self.proc.poll() is None:
+            self.proc.terminate()
+            try:
+                self.proc.wait(5)
+            except subprocess.TimeoutExpired:
+                self.proc.kill()
+                self.proc.wait()
+        if self.proc is not None and self.proc.stdout:
+            self.proc.stdout.close()
 
     def _read_pty(self, timeout):
         deadline, seen = time.monotonic() + timeout, b""
@@ -272,23 +426,45 @@ class QemuInterp(_Base):
             t.serial = t.serial.orig_serial
             t.mounted = False
 
-    def _soft_reset_and_mount(self):
+    def _soft_reset_and_mount(self, mpy):
         from mpremote.transport_serial import PyboardCommand, SerialIntercept, fs_hook_code
         t = self.transport
         self._unmount()
         t.enter_raw_repl(soft_reset=True)
+        roms = [self.roms[host, mpy] + (vm,) for host, vm in self.fs.sources if (host, mpy) in self.roms]
+        if roms:  # mounted before / (the UART), so they take precedence for their paths
+            t.exec("import vfs, uctypes\n" + "".join(
+                "vfs.mount(vfs.VfsRom(uctypes.bytearray_at(0x%x, %d)), %r)\n" % r for r in roms)
+                + "del vfs, uctypes\n")
         t.exec(fs_hook_code)
         t.exec(_MOUNT)
         t.cmd = PyboardCommand(t.serial, t.serial, self.fs.root, unsafe_links=True)
         t.serial = SerialIntercept(t.serial, t.cmd)
         t.mounted = True
 
+    def _pause(self, on):
+        # the port polls its UART while it waits for the next script: about a quarter of a host
+        # core per idle board, so between runs qemu is stopped (its instruction clock stops too)
+        if self.proc is not None and self.proc.poll() is None:
+            self.proc.send_signal(signal.SIGSTOP if on else signal.SIGCONT)
+
     def run(self, code, mounts=(), paths=(), timeout=300, mpy=None):
+        self._pause(False)
+        try:
+            return self._run(code, mounts, paths, timeout, mpy)
+        finally:
+            self._pause(True)
+
+    def _run(self, code, mounts, paths, timeout, mpy):
         from mpremote.transport import TransportError
         if self.proc.poll() is not None:
             raise InterpError("[%s] qemu exited (status %s)" % (self.name, self.proc.returncode))
-        self.fs.lay_out(mounts, self.mpy if mpy is None else mpy)
-        self._soft_reset_and_mount()
+        mpy = self.mpy if mpy is None else mpy
+        if _tree_stamp(ROM_SOURCES) != self.rom_stamp:
+            self._stop()  # a served directory changed since boot: new ROMFS images
+            self._boot()
+        self.fs.lay_out(mounts, mpy)
+        self._soft_reset_and_mount(mpy)
         t = self.transport
         try:
             t.exec_raw_no_follow(_prologue(paths) + code)
@@ -313,20 +489,6 @@ class QemuInterp(_Base):
             pass
 
     def close(self):
-        if self.transport is not None:
-            try:
-                self._unmount()
-                self.transport.close()
-            except Exception:
-                pass
-            self.transport = None
-        if self.proc.poll() is None:
-            self.proc.terminate()
-            try:
-                self.proc.wait(5)
-            except subprocess.TimeoutExpired:
-                self.proc.kill()
-                self.proc.wait()
-        if self.proc.stdout:
-            self.proc.stdout.close()
+        self._stop()
         self.fs.close()
+        shutil.rmtree(self.rom_dir, ignore_errors=True)

@@ -74,7 +74,14 @@ def _fleet(args, opts):
     if args.dask:
         from distributed import Client
 
-        client = Client(args.dask)
+        try:
+            client = Client(args.dask, timeout=args.dask_wait)
+            client.wait_for_workers(1, timeout=args.dask_wait)
+        except (OSError, TimeoutError) as e:
+            if client is not None:
+                client.close()
+            raise hostio.HostError("--dask %s: no scheduler with a worker answered within %g s (%s)"
+                                   % (args.dask, args.dask_wait, e)) from None
     try:
         results, failed = fleet.run(args.cmd, units, opts, progress, client)
     finally:
@@ -131,6 +138,8 @@ def main(argv=None):
         f.add_argument("--no-progress", dest="progress", action="store_false", help="no progress bar")
         f.add_argument("--dask", metavar="ADDRESS", help="run the per-unit fits on this Dask scheduler "
                                                          "(tcp://host:8786)")
+        f.add_argument("--dask-wait", type=float, default=60.0, metavar="S",
+                       help="wait this long for the scheduler and a first worker (default 60 s)")
 
     a = sub.add_parser("an12760", help="Offset/TCO/SENtol/TCS of one axis (NXP AN12760)")
     common(a)

@@ -42,6 +42,7 @@ def main(argv=None):
     try:
         hostio.check_output(a.json, "JSON")
         hostio.check_output(a.plot, "plot")
+        hostio.check_output(a.export, "exported model")
         if a.plot and not a.plot.lower().endswith(".png"):
             raise hostio.HostError("%s: --plot writes a PNG; give a name ending in .png" % a.plot)
         train = read_log(a.train)

@@ -15,10 +15,15 @@ def board_inputs(m, log, uptime0_s=0.0):
     t = np.round((log.temp - m.get("t_off", 0.0)) / m["t_lsb"]).astype(np.int64)
     raw = np.round(log.out / m.get("raw_lsb", 1.0)).astype(np.int64)
     lo, hi = m.get("raw_range", (-32768, 32767))
-    raw = np.clip(raw, lo, hi)
+    clipped = int(np.sum((raw < lo) | (raw > hi)))
+    raw = np.clip(raw, lo, hi)  # a board's ADC saturates there too; counted
     ms = np.round((log.t - log.t[0]) * 1000.0).astype(np.int64)
     dt = np.r_[0, np.diff(ms)]
-    dt = np.maximum(dt, 0)
+    # a new run, or the clock starting again, is a power-on for the board: it starts afresh
+    new = np.r_[False, dt[1:] <= 0]
+    if log.run is not None:
+        new |= np.r_[False, np.diff(log.run) != 0]
+    dt = np.where(new, 0, np.maximum(dt, 0))
     sup = np.zeros(len(t), np.int64)
     if log.supply is not None:
         sup = np.round(log.supply / m.get("supply_lsb", 0.001)).astype(np.int64)
@@ -26,7 +31,8 @@ def board_inputs(m, log, uptime0_s=0.0):
     if log.acc is not None:
         acc = np.round(log.acc / m.get("acc_lsb", 0.001)).astype(np.int64)
     return {"t": t, "raw": raw, "dt_ms": dt, "supply": sup, "acc": acc,
-            "uptime0_ms": int(round(uptime0_s * 1000.0))}
+            "uptime0_ms": int(round(uptime0_s * 1000.0)), "starts": np.flatnonzero(new),
+            "raw_clipped": clipped}
 
 
 def temperature(m, t):
@@ -39,21 +45,25 @@ def t0_aligned(m):
     return round((m.get("t0", 25.0) - t_off) / t_lsb) * t_lsb + t_off
 
 
-def _lowpass(x, dt_ms, tau, start=None):
+def _lowpass(x, dt_ms, tau, new):
     al = 1.0 - np.exp(-dt_ms / (tau * 1000.0))
     y = np.empty(len(x))
-    v = x[0] if start is None else start
+    v = x[0]
     for i in range(len(x)):
-        if i:
+        if new[i]:
+            v = x[i]
+        elif i:
             v += al[i] * (x[i] - v)
         y[i] = v
     return y
 
 
-def _play(x, h):
+def _play(x, h, new):
     y = np.empty(len(x))
     v = x[0]
     for i, xi in enumerate(x.tolist()):
+        if new[i]:
+            v = xi
         if xi - h > v:
             v = xi - h
         elif xi + h < v:
@@ -66,14 +76,19 @@ def features(m, inp):
     """(N, nfeat) feature values in their physical units (degC, s, V, g, 1)."""
     T = temperature(m, inp["t"].astype(float))
     dt = inp["dt_ms"].astype(float)
-    up = inp["uptime0_ms"] + np.cumsum(dt)
+    new = np.zeros(len(T), bool)
+    new[np.asarray(inp.get("starts", []), int)] = True
+    seg = np.cumsum(new)  # power-on count: uptime restarts at 0 at each
+    cum = np.cumsum(dt)
+    first = np.r_[0, np.flatnonzero(new)]
+    up = cum - cum[first][seg] + np.where(seg == 0, inp["uptime0_ms"], 0)
     feats = m.get("features", [])
     F = np.zeros((len(T), len(feats)))
     lps = {}
 
     def lp(tau):
         if tau not in lps:
-            lps[tau] = _lowpass(T, dt, tau)
+            lps[tau] = _lowpass(T, dt, tau, new)
         return lps[tau]
 
     for j, f in enumerate(feats):
@@ -85,7 +100,7 @@ def features(m, inp):
         elif k == "play":
             lag = float(f.get("lag", 0.0))
             x = lp(lag) if lag > 0 else T
-            v = _play(x, float(f["width"]) / 2) - x
+            v = _play(x, float(f["width"]) / 2, new) - x
         elif k == "drift_exp":
             v = np.exp(-up / (float(f["tau"]) * 1000.0))
         elif k == "drift_hyp":

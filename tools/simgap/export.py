@@ -5,7 +5,8 @@ MODEL.json holds
   "device": the augmented model (the base re-fitted with the verdict's effects, and the effects
             as augment.py features and terms), in the integers a board reads (its "board" LSBs);
   "base":   the sim alone (the diagnosis' base_only fit), what `replay --base-only` runs;
-  "store":  the device model packed for the coefficient store (`python -m tools store put`);
+  "store":  the device model packed for the coefficient store (`python -m tools store put`),
+            "store_base" the same for the base (`put --base`);
   "on_device" / "not_on_device": which verdict effects the board applies, and why not the others;
   "host":   the diagnosis' own RMS on the withheld log (sim alone and augmented) to compare with
             a replay.
@@ -166,10 +167,17 @@ def build(res, train_log, sensitivity=None):
     axes = "xyz"
     # what a board can read; everything below is in these units
     out = train_log.out
-    if np.all(out == np.round(out)) and np.max(np.abs(out)) < 32768:
+    # the offsets must stay inside the raw range where the board extrapolates them (the
+    # calibrated span widened by half of it each side, fixedpoint.EXTRAPOLATE)
+    half = (tr[1] - tr[0]) / 2
+    Tx = np.linspace(tr[0] - half, tr[1] + half, 200) - t0
+    reach = max(float(np.max(np.abs(out))),
+                max(float(np.max(np.abs(np.polyval(list(reversed(g[a]["offset"])), Tx))))
+                    for g in (mod["axes"], mod["base_only"]) for a in axes))
+    if np.all(out == np.round(out)) and reach < 32768:
         raw_lsb = 1.0
     else:
-        raw_lsb = float(np.max(np.abs(out))) * 1.5 / 32767
+        raw_lsb = reach * 1.25 / 32767
     ratio = UNIT_RATIO.get((mod["out_unit"], mod["ref_unit"]))
     notes = []
     b = _Builder()
@@ -178,7 +186,8 @@ def build(res, train_log, sensitivity=None):
     for group in (aug, base):
         for i, a in enumerate(axes):
             ax = group[a]
-            if np.ptp(train_log.ref[:, i]) == 0 or not _s0(ax) > 0:
+            ident = (mod["axes"][a].get("identified") or {}).get("sensitivity", [True])[0]
+            if np.ptp(train_log.ref[:, i]) == 0 or not ident or not _s0(ax) > 0:
                 nominal = sensitivity or ratio
                 if nominal is None:
                     raise ExportError("axis %s: the log never moves the input, so the sensitivity is "
@@ -187,6 +196,12 @@ def build(res, train_log, sensitivity=None):
                 if group is aug:
                     notes.append("axis %s: sensitivity not identified by the log (input never "
                                  "changes); nominal %g %s per %s" % (a, nominal, mod["out_unit"], mod["ref_unit"]))
+                # the fit put s * ref into the offset where the input stood still at r0 (gravity on
+                # an accelerometer's axis): take the nominal s * r0 back out of it
+                r0 = float(np.median(train_log.ref[:, i]))
+                o = [float(c) for c in ax["offset"]]
+                o[0] -= (float(nominal) - _s0(ax)) * r0 if _s0(ax) > 0 else float(nominal) * r0
+                ax["offset"] = o
                 ax["sensitivity"] = [float(nominal), 0.0]
     on, off = [], []
     v0 = None
@@ -283,8 +298,9 @@ def pack(dev):
 
 def write(path, res, train_log, sensitivity=None):
     exp = build(res, train_log, sensitivity)
-    vals, fracs = pack(exp["device"])
-    exp["store"] = {"kind": "augment", "values": vals, "frac": fracs}
+    for key, dev in (("store", exp["device"]), ("store_base", exp["base"])):
+        vals, fracs = pack(dev)
+        exp[key] = {"kind": "augment", "values": vals, "frac": fracs}
     with open(path, "w") as f:
         json.dump(exp, f, indent=1)
     return exp

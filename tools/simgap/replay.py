@@ -11,7 +11,6 @@ LSBs give, and writes
 MODEL.json is what `python -m tools.simgap ... --export MODEL.json` wrote: "device" is the
 augmented model, "base" the sim alone (`--base-only`). A model JSON holding just a device
 model (augment.py's dict) works too."""
-import argparse
 import base64
 import json
 import os
@@ -20,6 +19,7 @@ import tempfile
 
 import numpy as np
 
+from tools import hostio
 from tools.firmware import mpvm
 
 from . import devmodel
@@ -62,6 +62,25 @@ def locked(ap, buf, res, lo, hi, raw, out, acc):
     micropython.heap_unlock()
     return err
 
+STARTS = %(starts)r  # rows before which the board powers on again (a new run, the clock restarting)
+nxt = [0]
+
+
+def phase(fn, aug, ap, buf, res, lo, hi, raw, out, acc):
+    # rows lo..hi in order, a power-on (aug.start, which may allocate) between segments
+    a = lo
+    while nxt[0] < len(STARTS) and STARTS[nxt[0]] < hi:
+        b = STARTS[nxt[0]]
+        if b > a:
+            r = fn(ap, buf, res, a, b, raw, out, acc)
+            if r is not None:
+                return r
+        aug.start(0)
+        nxt[0] += 1
+        a = b
+    return fn(ap, buf, res, a, hi, raw, out, acc)
+
+
 def main():
     with open('/data/model.json') as f:
         m = json.load(f)
@@ -77,17 +96,26 @@ def main():
     acc = array('i', [0, 0, 0])
     ap = aug.apply
     w = min(n, %(warm)d)
-    loop(ap, buf, res, 0, w, raw, out, acc)
+    phase(loop, aug, ap, buf, res, 0, w, raw, out, acc)
     k = min(n, w + %(measure)d)
+    for b in STARTS:  # end the measured rows at a power-on: start() is set-up, not a sample
+        if w < b < k:
+            k = b
+            break
     gc.collect()
     a0 = gc.mem_alloc()
-    loop(ap, buf, res, w, k, raw, out, acc)
+    s0 = nxt[0]
+    phase(loop, aug, ap, buf, res, w, k, raw, out, acc)
     a1 = gc.mem_alloc()
+    restarts = nxt[0] - s0
     gc.collect()
-    err = locked(ap, buf, res, k, n, raw, out, acc)
+    mark = nxt[0]
+    err = phase(locked, aug, ap, buf, res, k, n, raw, out, acc)
     if err is not None:
         print('LOCKFAIL', repr(err))
-        loop(ap, buf, res, k, n, raw, out, acc)
+        nxt[0] = mark
+        phase(loop, aug, ap, buf, res, k, n, raw, out, acc)
+    print('RESTARTS', restarts, len(STARTS))
     print('ALLOC', a1 - a0, k - w)
     print('CLAMPED', aug.clamped, aug.comp.clamped)
     mv = memoryview(res)
@@ -117,7 +145,8 @@ def run_device(dev, inp, timeout=None):
         with open(os.path.join(d, "model.json"), "w") as f:
             json.dump(dev, f)
         rows.astype("<i4").tofile(os.path.join(d, "rows.bin"))
-        code = _VM % {"n": n, "up0": inp.get("uptime0_ms", 0), "warm": _WARM, "measure": _MEASURE}
+        code = _VM % {"n": n, "up0": inp.get("uptime0_ms", 0), "warm": _WARM, "measure": _MEASURE,
+                      "starts": [int(v) for v in inp.get("starts", [])]}
         stdout = mpvm.run(code, mounts=[d + ":/data"], heap="%dm" % heap,
                           timeout=timeout or max(120, n // 200))
     chunks = []
@@ -131,6 +160,11 @@ def run_device(dev, inp, timeout=None):
         elif line.startswith("LOCKFAIL"):
             info["heap_locked"] = False
             info["lock_error"] = line[9:]
+        elif line.startswith("RESTARTS "):
+            _, r, total = line.split()
+            info["power_ons"] = int(total)
+            if int(r):  # start() in the measured rows allocates by design (set-up, not a sample)
+                info["allocated_includes_power_on"] = True
         elif line.startswith("CLAMPED "):
             _, a, c = line.split()
             info["clamped"] = int(a) + int(c)
@@ -142,13 +176,10 @@ def run_device(dev, inp, timeout=None):
 
 def load_model(path):
     try:
-        with open(path) as f:
-            d = json.load(f)
-    except OSError as e:
-        raise LogError("%s: cannot read model: %s" % (path, e.strerror)) from None
-    except json.JSONDecodeError as e:
-        raise LogError("%s: line %d: not JSON: %s" % (path, e.lineno, e.msg)) from None
-    if "device" not in d and "t_lsb" not in d:
+        d = hostio.load_json(path)
+    except hostio.HostError as e:
+        raise LogError(str(e)) from None
+    if not isinstance(d, dict) or ("device" not in d and "t_lsb" not in d):
         raise LogError("%s: not an exported model (no 'device' section; write one with "
                        "python -m tools gap ... --export %s)" % (path, path))
     return d
@@ -174,6 +205,7 @@ def replay(model, log, base_only=False):
     res = {"rms": rms, "unit": log.meta.get("ref_unit", "ref unit"), "rows": len(log),
            "allocated_per_sample": info.get("allocated_per_sample"),
            "heap_locked": info["heap_locked"], "clamped": info.get("clamped", 0),
+           "raw_clipped": inp["raw_clipped"], "power_ons": info.get("power_ons", 0),
            "model": "base" if base_only else "augmented"}
     if "lock_error" in info:
         res["lock_error"] = info["lock_error"]
@@ -181,7 +213,7 @@ def replay(model, log, base_only=False):
 
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(prog="python -m tools.simgap.replay",
+    ap = hostio.Parser(prog="python -m tools.simgap.replay",
                                  description="Run the on-device compensation over a log in the real "
                                              "MicroPython VM and report the RMS error per axis.")
     ap.add_argument("model", help="MODEL.json written by --export")
@@ -190,14 +222,22 @@ def main(argv=None):
     ap.add_argument("--base-only", action="store_true", help="apply the base model alone")
     a = ap.parse_args(argv)
     try:
+        hostio.check_output(a.json, "JSON")
         model = load_model(a.model)
         log = read_log(a.log)
+    except (LogError, hostio.HostError) as e:
+        return hostio.fail(e)
+    try:
         res, _ = replay(model, log, a.base_only)
     except (LogError, ReplayError, ValueError) as e:
-        print("error: %s" % e, file=sys.stderr)
-        return 2
-    with open(a.json, "w") as f:
-        json.dump(res, f, indent=1)
+        return hostio.fail(e)
+    except (KeyError, TypeError, IndexError) as e:  # a model file edited or cut by hand
+        return hostio.fail("%s: not a usable exported model (%s %s); write it again with python -m tools gap "
+                           "... --export" % (a.model, type(e).__name__, e))
+    try:
+        hostio.write_all([(a.json, hostio.dumps(res, indent=1))])
+    except hostio.HostError as e:
+        return hostio.fail(e)
     print("%s model on %s (%d rows): RMS %s %s; %s bytes allocated per sample%s" % (
         res["model"], a.log, res["rows"],
         " ".join("%s %.4g" % (k, v) for k, v in res["rms"].items()), res["unit"],

@@ -16,6 +16,8 @@ def main():
     master, slave = pty.openpty()
     # Raw: no echo, no CR/LF translation, as a USB CDC port presents itself.
     tty.setraw(slave)
+    # The starting user's only (a pty is 0620, group tty, by default).
+    os.fchmod(slave, 0o600)
     # Keep our own handle on the slave side so the pty survives clients
     # opening and closing it (otherwise the master reads EIO in between).
     print(os.ttyname(slave), flush=True)

@@ -16,7 +16,7 @@ import path from "node:path";
 import { pathToFileURL } from "node:url";
 import { CTL, Ring } from "./rings.mjs";
 
-const { shared, wasmDir, flashDir, vmFiles, configPy, heapsize, powerOnMs } = workerData;
+const { shared, wasmDir, flashDir, vmFiles, configPy, heapsize, powerOnMs, compiled, flashLimit } = workerData;
 const ctl = new Int32Array(shared.ctl);
 const inRing = new Ring(ctl, shared.inBuf, CTL.IN_W, CTL.IN_R);
 const outRing = new Ring(ctl, shared.outBuf, CTL.OUT_W, CTL.OUT_R);
@@ -165,10 +165,13 @@ const SLEEP_BREAK_MS = (() => {
 const origInstantiate = WebAssembly.instantiate;
 WebAssembly.instantiate = async function (source, imports) {
   if (!(source instanceof WebAssembly.Module) && imports?.env?.mp_js_ticks_ms) {
+    if (!wasmModule && compiled) wasmModule = compiled;
     if (!wasmModule) {
       const patched = makeMemoryShared(source);
       if (!patched) log("warning: could not make VM memory shared; Ctrl-C cannot stop a tight loop");
       wasmModule = await WebAssembly.compile(patched || source);
+      // compiled once per server: the next workers (soft resets) reuse it
+      parentPort.postMessage({ t: "compiled", module: wasmModule });
     }
     imports.env.mp_js_ticks_ms = () => {
       const t = (Date.now() - powerOnMs) >>> 0;
@@ -188,6 +191,19 @@ WebAssembly.instantiate = async function (source, imports) {
       return t;
     };
     mapSyscallErrors(imports);
+    // `obj.attr = v` from Python on a frozen object (freezeIntrinsics) does nothing, as in
+    // sloppy JavaScript, instead of throwing through the VM's C frames
+    const storeAttr = imports.env.store_attr;
+    if (typeof storeAttr === "function" && !storeAttr.__wrapped) {
+      imports.env.store_attr = (...a) => {
+        try {
+          return storeAttr(...a);
+        } catch (e) {
+          if (!(e instanceof TypeError)) throw e;
+        }
+      };
+      imports.env.store_attr.__wrapped = true;
+    }
     const instance = await origInstantiate(wasmModule, imports);
     memory = instance.exports.memory;
     return { instance, module: wasmModule };
@@ -196,6 +212,88 @@ WebAssembly.instantiate = async function (source, imports) {
 };
 
 const { loadMicroPython } = await import(pathToFileURL(path.join(wasmDir, "micropython.mjs")).href);
+
+// ------------------------------------------------------------ the sealed bridge
+
+// Code on the board reaches JavaScript through the VM's `js` module (and jsffi), whose root is
+// the JS global object: in this worker that is node's, with process, require and fs one step
+// away, i.e. the host.  The board gets this object as its `js` instead: the few calls the board
+// itself needs, nothing else.  From a function the only way onwards is .constructor, to
+// Function (code from a string, in this realm's global scope), so the function prototypes'
+// constructor properties are taken away too (nothing here or in the VM's loader uses them).
+let resetRequested = false;
+const BRIDGE = Object.freeze(
+  Object.assign(Object.create(null), {
+    // machine.reset()
+    vboard_reset: () => {
+      resetRequested = true;
+    },
+  }),
+);
+
+for (const f of [function () {}, async function () {}, function* () {}, async function* () {}]) {
+  Object.defineProperty(Object.getPrototypeOf(f), "constructor", {
+    value: undefined,
+    writable: false,
+    configurable: false,
+  });
+}
+
+// ... and the shared prototypes cannot be changed from the board either: a getter planted on
+// Object.prototype (a Python function, through jsffi) would otherwise be called by this
+// worker's own code with its objects - the VM's loader, FS - as `this`.
+function freezeIntrinsics() {
+  const ctors = [Object, Function, Array, Promise, Error, TypeError, RangeError, SyntaxError,
+    ReferenceError, EvalError, URIError, AggregateError, Map, Set, WeakMap, WeakSet, WeakRef,
+    FinalizationRegistry, RegExp, String, Number, Boolean, Symbol, BigInt, Date, ArrayBuffer,
+    SharedArrayBuffer, DataView, Proxy, Reflect, JSON, Math, Atomics, WebAssembly,
+    Object.getPrototypeOf(Uint8Array)];
+  const typed = [Int8Array, Uint8Array, Uint8ClampedArray, Int16Array, Uint16Array, Int32Array,
+    Uint32Array, Float32Array, Float64Array, BigInt64Array, BigUint64Array];
+  const protos = [Object.getPrototypeOf(function* () {}), Object.getPrototypeOf(async function () {}),
+    Object.getPrototypeOf(async function* () {}), Object.getPrototypeOf([][Symbol.iterator]()),
+    Object.getPrototypeOf(Object.getPrototypeOf([][Symbol.iterator]()))];
+  // A frozen prototype's data property cannot be shadowed by assignment on an instance
+  // (`this.name = ...` in an Error subclass would throw): turn the ones code assigns into
+  // accessors whose setter defines the instance's own property, then freeze.
+  const shadowable = ["name", "message", "toString", "valueOf", "stack", "code"];
+  const freeze = (o) => {
+    for (const k of shadowable) {
+      const d = Object.getOwnPropertyDescriptor(o, k);
+      if (!d || !("value" in d) || !d.configurable) continue;
+      const value = d.value;
+      Object.defineProperty(o, k, {
+        get() {
+          return value;
+        },
+        set(v) {
+          if (this === o) throw new TypeError(`cannot change a sealed prototype's ${k}`);
+          Object.defineProperty(this, k, { value: v, writable: true, enumerable: false, configurable: true });
+        },
+        enumerable: d.enumerable,
+        configurable: false,
+      });
+    }
+    Object.freeze(o);
+  };
+  for (const c of [...ctors, ...typed]) {
+    freeze(c);
+    if (c.prototype) freeze(c.prototype);
+  }
+  for (const p of protos) freeze(p);
+}
+
+function sealBridge() {
+  // proxy_js_ref[0] is what `import js` proxies (MP_OBJ_JSPROXY_REF_GLOBAL_THIS)
+  const refs = globalThis.proxy_js_ref;
+  const map = globalThis.proxy_js_ref_map;
+  if (!Array.isArray(refs) || refs[0] !== globalThis || !(map instanceof Map)) {
+    throw new Error("unexpected VM build: cannot seal its js bridge");
+  }
+  refs[0] = BRIDGE;
+  map.delete(globalThis);
+  map.set(BRIDGE, 0);
+}
 
 let mp = null;
 let FS = null;
@@ -302,7 +400,49 @@ function loadFlash(hostDir, vmDir) {
   }
 }
 
+// Bytes the flash holds as a LittleFS/FAT volume counts them: whole blocks per file and per
+// directory (the same count as vboard_rt.FlashVfs.statvfs).
+const BLOCK = 4096;
+function flashUsed(dir = FLASH) {
+  let n = 0;
+  for (const name of FS.readdir(dir)) {
+    if (name === "." || name === "..") continue;
+    const p = dir + "/" + name;
+    const st = FS.stat(p);
+    if (FS.isDir(st.mode)) n += BLOCK + flashUsed(p);
+    else n += Math.ceil(st.size / BLOCK) * BLOCK;
+  }
+  return n;
+}
+
+function blocksOf(size) {
+  return Math.ceil(size / BLOCK) * BLOCK;
+}
+
+const ENOSPC_WASI = 51; // mapped to Linux ENOSPC (28) at the syscall boundary
+
 function mirrorFlash() {
+  // A full flash refuses the write (OSError ENOSPC), as a board's does; nothing reaches the
+  // host beyond the board's flash size.
+  const origWrite = FS.write;
+  FS.write = function (stream, buffer, offset, length, position, canOwn) {
+    const p = stream.path || "";
+    if (flashLimit && (p === FLASH || p.startsWith(FLASH + "/")) && stream.node) {
+      const size = stream.node.usedBytes !== undefined ? stream.node.usedBytes : FS.stat(p).size;
+      const pos = typeof position === "number" ? position : stream.position;
+      const end = (stream.flags & 1024) !== 0 ? size + length : pos + length; // O_APPEND
+      if (end > size && blocksOf(end) > blocksOf(size) &&
+          flashUsed() - blocksOf(size) + blocksOf(end) > flashLimit) {
+        throw new FS.ErrnoError(ENOSPC_WASI);
+      }
+    }
+    return origWrite.call(FS, stream, buffer, offset, length, position, canOwn);
+  };
+  const origMkdir = FS.mkdir;
+  FS.mkdir = function (p, mode) {
+    if (flashLimit && hostPathOf(p) && flashUsed() + BLOCK > flashLimit) throw new FS.ErrnoError(ENOSPC_WASI);
+    return origMkdir.call(FS, p, mode);
+  };
   const wrap = (name, after) => {
     const orig = FS[name];
     FS[name] = function (...args) {
@@ -371,20 +511,36 @@ _vboard_setup()
 del _vboard_setup
 `;
 
-let mode = "friendly";
-let resetRequested = false;
-globalThis.vboardRequestReset = () => {
-  resetRequested = true;
-};
+let mode = workerData.mode || "friendly";
 
 function setBusy(on) {
   Atomics.store(ctl, CTL.BUSY, on ? 1 : 0);
 }
 
+// A Ctrl-C that reached the line just before the code started (the server saw the VM idle
+// and queued it as a byte) interrupts the code, as a board's UART interrupt would have:
+// input up to it is dropped.
+function ctrlCWaiting() {
+  if (!kbd) return;
+  const n = inRing.available();
+  if (n === 0) return;
+  const r = Atomics.load(ctl, CTL.IN_R);
+  const buf = new Uint8Array(shared.inBuf);
+  for (let i = 0; i < n; i++) {
+    if (buf[(r + i) & (buf.length - 1)] === CTRL_C) {
+      Atomics.store(ctl, CTL.IN_R, (r + i + 1) | 0);
+      const words = new Uint32Array(memory.buffer);
+      for (const [addr, value] of kbd.writes) words[addr / 4] = value;
+      return;
+    }
+  }
+}
+
 // Runs Python source with Ctrl-C armed; returns the PythonError or null.
-function runCode(code) {
+function runCode(code, early = true) {
   clearPendingInterrupt();
   setBusy(true);
+  if (early) ctrlCWaiting();
   let err = null;
   try {
     mp.runPython(code);
@@ -411,6 +567,8 @@ async function bootVM() {
     stderr: () => {},
     linebuffer: false,
   });
+  sealBridge();
+  freezeIntrinsics();
   FS = mp.FS;
   const M = mp._module;
   for (const fd of [0, 1, 2]) {
@@ -430,7 +588,7 @@ async function bootVM() {
   FS.writeFile("/vboard/vboard_config.py", configPy);
 
   resetRequested = false;
-  printError(runCode(SETUP));
+  printError(runCode(SETUP, false));
   // As on a board: boot.py always, main.py only when the friendly REPL is next.
   for (const f of mode === "friendly" ? ["boot.py", "main.py"] : ["boot.py"]) {
     if (FS.analyzePath(FLASH + "/" + f).exists) {
@@ -471,9 +629,28 @@ async function reboot(soft) {
   pump();
 }
 
+// The board's simulated time (vboard.Board.clock_us) goes on across resets: hand it to the
+// server, which gives it to the next VM.
+function boardClockUs() {
+  try {
+    const v = mp.pyimport("vboard").board.clock_s();
+    return typeof v === "number" && Number.isFinite(v) ? Math.round(v * 1e6) : null;
+  } catch {
+    return null;
+  }
+}
+
 function hardReset() {
   ready = false;
-  parentPort.postMessage({ t: "hard-reset" });
+  parentPort.postMessage({ t: "hard-reset", clockUs: boardClockUs() });
+}
+
+// A soft reset is a new VM in a new worker, started by the server: the old one's memory goes
+// with its thread (a VM instance re-created in the same worker is never freed: about 1.2 MB a
+// reset).  RAM is lost either way; flash, the serial line and unread input stay.
+function softReset() {
+  ready = false;
+  parentPort.postMessage({ t: "soft-reset", mode, clockUs: boardClockUs() });
 }
 
 // ------------------------------------------------------------ REPL
@@ -489,7 +666,7 @@ function rawExec(src, pasted) {
   if (err && err.type !== "SystemExit") emitText(err.message);
   emitRaw("\x04");
   if (resetRequested) return hardReset();
-  if (err && err.type === "SystemExit") return reboot(true);
+  if (err && err.type === "SystemExit") return softReset();
   emitRaw(">");
 }
 
@@ -540,7 +717,7 @@ function rawChar(c) {
       emitRaw("OK");
       if (rawBuf.length === 0) {
         emitRaw("\r\n");
-        return reboot(true);
+        return softReset();
       }
       const src = rawBuf;
       rawBuf = [];
@@ -569,7 +746,7 @@ function vmChar(c) {
     ret = ret || mp.replProcessChar(CTRL_C);
   }
   if (resetRequested) return hardReset();
-  if (ret & PYEXEC_FORCED_EXIT) return reboot(true);
+  if (ret & PYEXEC_FORCED_EXIT) return softReset();
   if (c === CTRL_A && captured.endsWith(RAW_BANNER)) mode = "raw";
 }
 
@@ -596,4 +773,4 @@ parentPort.on("message", (m) => {
   if (m.t === "in") pump();
 });
 
-reboot(false);
+reboot(Boolean(workerData.soft));

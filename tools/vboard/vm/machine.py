@@ -14,11 +14,16 @@ SOFT_RESET = 5
 
 _FREQ = 125_000_000
 
+# Board time a bus call takes (vboard.py, "Time"): the bits on the wire plus what the
+# MicroPython call itself costs an MCU (tens of microseconds at 125 MHz).
+_CALL_US = 20
+_ADC_US = 10  # conversion (2 us on an RP2040) and the call
+
 
 def reset():
     import js
 
-    js.vboardRequestReset()
+    js.vboard_reset()
     raise SystemExit
 
 
@@ -42,11 +47,13 @@ def unique_id():
 
 
 def idle():
+    _board.advance_us(1000)
     time.sleep_ms(1)
 
 
 def lightsleep(ms=None):
     if ms:
+        _board.advance_us(ms * 1000)
         time.sleep_ms(ms)
 
 
@@ -130,6 +137,10 @@ class I2C:
     def deinit(self):
         pass
 
+    def _wire(self, nbytes):
+        # address byte + data, 9 clocks a byte
+        _board.advance_us(_CALL_US + (nbytes + 1) * 9_000_000 // self._freq)
+
     def _dev(self, addr):
         dev = _board.i2c_device(self._bus, addr)
         if dev is None:
@@ -147,6 +158,7 @@ class I2C:
         return _board.i2c_scan(self._bus)
 
     def writeto(self, addr, buf, stop=True):
+        self._wire(len(buf))
         self._dev(addr).write(buf)
         return len(buf)
 
@@ -157,15 +169,17 @@ class I2C:
         for b in vector:
             data.extend(b)
             n += len(b)
+        self._wire(n)
         dev.write(data)
         return n
 
     def readfrom(self, addr, nbytes, stop=True):
         buf = bytearray(nbytes)
-        self._dev(addr).read_into(buf)
+        self.readfrom_into(addr, buf)
         return bytes(buf)
 
     def readfrom_into(self, addr, buf, stop=True):
+        self._wire(len(buf))
         self._dev(addr).read_into(buf)
 
     def readfrom_mem(self, addr, memaddr, nbytes, *, addrsize=8):
@@ -174,11 +188,13 @@ class I2C:
         return bytes(buf)
 
     def readfrom_mem_into(self, addr, memaddr, buf, *, addrsize=8):
+        self._wire(addrsize // 8 + 1 + len(buf))  # register address, repeated start, data
         dev = self._dev(addr)
         dev.write(self._memaddr(memaddr, addrsize))
         dev.read_into(buf)
 
     def writeto_mem(self, addr, memaddr, buf, *, addrsize=8):
+        self._wire(addrsize // 8 + len(buf))
         dev = self._dev(addr)
         dev.write(bytes(self._memaddr(memaddr, addrsize)) + bytes(buf))
 
@@ -210,6 +226,7 @@ class SPI:
         pass
 
     def _xfer(self, wbuf, rbuf):
+        _board.advance_us(_CALL_US + len(wbuf) * 8_000_000 // self.baudrate)
         dev = _board.spi_selected(self._bus)
         if dev is not None:
             dev.transfer(wbuf, rbuf)
@@ -248,6 +265,7 @@ class ADC:
         self._ch = ch + 26 if isinstance(ch, int) and 0 <= ch <= 3 else ch
 
     def read_u16(self):
+        _board.advance_us(_ADC_US)
         return _board.adc_read(self._ch)
 
 

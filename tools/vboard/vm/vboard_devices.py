@@ -17,18 +17,25 @@ MLX90609_CS = 17
 ADC_RATE = 26  # analog gyro rate output
 ADC_TEMP = 27  # analog gyro temperature output
 
-# Warm up from room temperature, hold, cool down: minutes of a real session
-# compressed into a demo (stretch it with VBOARD_TIME_SCALE < 1).
-PROFILE = [(0, 25.0), (20, 25.0), (60, 45.0), (80, 45.0), (120, 25.0)]
+# The room the board sits in, chosen with --scenario (VBOARD_SCENARIO): [(s, degC), ...] over
+# board time (vboard.py, "Time"), held after the last point.  The default holds a steady
+# room temperature, so a calibration stays inside its span; the others warm or cool the
+# board over minutes (stretch them with VBOARD_TIME_SCALE < 1).
+SCENARIOS = {
+    "steady": [(0, 25.0)],
+    "heating": [(0, 25.0), (20, 25.0), (60, 45.0)],
+    "cooling": [(0, 45.0), (20, 45.0), (60, 25.0)],
+    "cycle": [(0, 25.0), (20, 25.0), (60, 45.0), (80, 45.0), (120, 25.0)],
+}
 
 
 def profile():
-    """The temperature profile: VBOARD_PROFILE ("s:degC,...") when the host set one."""
+    """The temperature profile: VBOARD_PROFILE ("s:degC,...") when the host set one, else the scenario's."""
     import vboard_config
 
     text = getattr(vboard_config, "PROFILE", "")
     if not text:
-        return PROFILE
+        return SCENARIOS[getattr(vboard_config, "SCENARIO", "steady")]
     pts = []
     for item in text.split(","):
         s, c = item.split(":")

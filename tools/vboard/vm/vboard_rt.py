@@ -125,6 +125,40 @@ class FlashVfs:
         return self._fs.getcwd()
 
 
+class _BoardTime:
+    # `time` as code on the board sees it: the VM's own, whose sleeps also let the same
+    # time pass on the board's simulated clock (vboard.py, "Time").
+    pass
+
+
+def _board_time(board):
+    import time
+
+    t = _BoardTime()
+    for name in dir(time):
+        if not name.startswith("__"):
+            setattr(t, name, getattr(time, name))
+    t.__name__ = "time"
+
+    # the board's clock moves once the sleep is over (a Ctrl-C that ends it moves nothing)
+    def sleep(s):
+        time.sleep(s)
+        board.advance_us(int(s * 1000000))
+
+    def sleep_ms(ms):
+        time.sleep_ms(ms)
+        board.advance_us(int(ms) * 1000)
+
+    def sleep_us(us):
+        time.sleep_us(us)
+        board.advance_us(int(us))
+
+    t.sleep = sleep
+    t.sleep_ms = sleep_ms
+    t.sleep_us = sleep_us
+    return t
+
+
 def start():
     import builtins
     import os
@@ -138,3 +172,7 @@ def start():
     # Board modules are built in on a real board: load them now, while their
     # directory is mounted, so that `import machine` finds them in sys.modules.
     import machine  # noqa: F401
+    import vboard
+
+    # found before the built-in by every later `import time` (sys.modules is searched first)
+    sys.modules["time"] = _board_time(vboard.board)

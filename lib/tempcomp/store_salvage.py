@@ -1,0 +1,64 @@
+"""What a damaged store copy still says: read by ``tempcomp.store`` only when a copy fails its
+checks, to name the records a corrupt newest copy took with it (never trusted as data). Kept out
+of ``tempcomp.store`` so a boot whose store is intact never loads it (docs/ram.md).
+"""
+
+import struct
+
+from tempcomp.store import StoreError, _entry_size, _text
+
+try:
+    from micropython import const
+except ImportError:
+
+    def const(x):
+        return x
+
+
+_HDR = const(16)  # as in tempcomp.store (private const() names are not module attributes)
+_ENTRY = const(28)
+_CRC = const(4)
+
+
+def salvage(buf):
+    # What a damaged copy's header and entries still say: (generation, record names, all names
+    # read?). Only to tell the user what a corrupt newest copy took with it; never trusted as data.
+    n = len(buf)
+    if n < _HDR:
+        return 0, [], False
+    count = struct.unpack_from("<H", buf, 6)[0]
+    length = struct.unpack_from("<I", buf, 8)[0]
+    gen = struct.unpack_from("<I", buf, 12)[0]
+    names = []
+    off = _HDR
+    for _ in range(count):
+        if off + _ENTRY > n:
+            return gen, names, False
+        e = struct.unpack_from("<HBBBBBBH", buf, off)
+        if not e[3] or e[0] != _entry_size(e[3], e[4], e[5], e[7]) or off + e[0] > n:
+            return gen, names, False
+        try:
+            names.append(_text(buf, off + _ENTRY, e[3], 0x20))
+        except ValueError:
+            return gen, names, False
+        # a save's record carries its generation too: one flipped bit cannot lower both
+        c = struct.unpack_from("<I", buf, off + 20)[0]
+        if c > gen:
+            gen = c
+        off += e[0]
+    return gen, names, off + _CRC in (length, n)  # else the count is wrong: names may be missing
+
+
+def lost_names(lost):
+    """The records only the corrupt newest copy held, in words (``Store._lost``)."""
+    names = ", ".join(repr(x) for x in lost[3]) or "none"
+    return "records only it held (lost): %s%s" % (
+        names, "" if lost[4] else " (and maybe more: its entries are unreadable past that)")
+
+
+def lost_error(store, name):
+    """The StoreError for a record missing from the copy in use while a newer copy is corrupt."""
+    lost = store._lost
+    return StoreError("%r is not in the copy in use (generation %d): the newest copy of the store (%s, "
+                      "generation %d) %s; %s" % (name, store.generation, lost[0], lost[2], lost[1],
+                                                 lost_names(lost)))
