@@ -22,15 +22,7 @@ def vm_run(tmp_path_factory, interp):
          "frac": [4, 4], "values": [-12345, 2**31 - 1]}]}
     (d / "host.cal").write_bytes(storetool.encode_image(doc))
     code = "import store_vm_check\n"
-    try:
-        return interps.run(interp, code, mounts=(str(d) + ":/hostdata",), paths=("/vmtest",), timeout=180)
-    except AssertionError as e:
-        if interp.name == "circuitpython" and "in _replace" in str(e) and "No such file" in str(e):
-            # the unix port's VfsPosix mounted with a root directory (how the runner gives the script
-            # its own "/") builds both rename() paths in one buffer; boards use VfsFat
-            pytest.xfail("CircuitPython 10.2.1 unix VfsPosix(root).rename loses its first path: "
-                         "a harness limit, not the store's")
-        raise
+    return interps.run(interp, code, mounts=(str(d) + ":/hostdata",), paths=("/vmtest",), timeout=180)
 
 
 def _vals(out):

@@ -263,6 +263,55 @@ class WasmInterp(_Base):
             raise InterpError("[wasm] %s" % e) from None
 
 
+# The unix port's "/" becomes the staged directory. Not VfsPosix(root): CircuitPython 10.2.1's
+# VfsPosix with a root builds both rename() paths in one buffer (the first is lost). A Python VFS
+# that prefixes every path itself and hands the plain VfsPosix whole host paths.
+_HOST_ROOT = """import os
+class _HostRoot:
+    def __init__(self, root):
+        self.root = root
+        self.cwd = "/"
+        self.fs = os.VfsPosix()
+    def _p(self, path):
+        if not path.startswith("/"):
+            path = self.cwd + path
+        return self.root + path
+    def mount(self, readonly, mkfs):
+        pass
+    def umount(self):
+        pass
+    def chdir(self, path):
+        if not path.startswith("/"):
+            path = self.cwd + path
+        if not path.endswith("/"):
+            path += "/"
+        self.fs.stat(self.root + path)
+        self.cwd = path
+    def getcwd(self):
+        return self.cwd if self.cwd == "/" else self.cwd[:-1]
+    def open(self, path, mode):
+        return self.fs.open(self._p(path), mode)
+    def stat(self, path):
+        return self.fs.stat(self._p(path))
+    def statvfs(self, path):
+        return self.fs.statvfs(self._p(path))
+    def ilistdir(self, path):
+        return self.fs.ilistdir(self._p(path))
+    def remove(self, path):
+        self.fs.remove(self._p(path))
+    def rename(self, old, new):
+        self.fs.rename(self._p(old), self._p(new))
+    def mkdir(self, path):
+        self.fs.mkdir(self._p(path))
+    def rmdir(self, path):
+        self.fs.rmdir(self._p(path))
+os.umount("/")
+os.mount(_HostRoot(%r), "/")
+os.chdir("/")
+del os, _HostRoot
+"""
+
+
 class UnixInterp(_Base):
     """A unix-port interpreter (CircuitPython's coverage build): a fresh process per run, its
     filesystem root replaced by the staged directory (VfsPosix mounted at /)."""
@@ -273,7 +322,7 @@ class UnixInterp(_Base):
 
     def run(self, code, mounts=(), paths=(), timeout=300, mpy=None):  # noqa: ARG002 (firmware only)
         self.fs.lay_out(mounts)
-        pre = "import os\nos.umount('/')\nos.mount(os.VfsPosix(%r), '/')\nos.chdir('/')\ndel os\n" % self.fs.root
+        pre = _HOST_ROOT % self.fs.root
         env = dict(os.environ, MICROPYPATH="")
         try:
             proc = subprocess.run([self.exe, "-X", "heapsize=" + self.heap, "-c", pre + _prologue(paths) + code],
