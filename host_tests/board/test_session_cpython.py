@@ -56,6 +56,17 @@ def test_skip_and_quit(tmp_path):
     assert not os.path.exists(path)
 
 
+def test_a_person_quitting_gets_a_message_not_a_traceback(tmp_path, monkeypatch, capsys):
+    # at the REPL (no scripted answers) "q" ends the session with its message; nothing raised
+    b, sim = board()
+    path = str(tmp_path / "t.cal")
+    typed = []
+    monkeypatch.setattr("builtins.input", lambda prompt="": typed.append(prompt) or "q")
+    assert Session(b, store_path=path, which=("mpu6xxx",)).run() is None
+    assert "session ended: quit at step 'still'; nothing saved" in capsys.readouterr().out
+    assert typed and not os.path.exists(path) and sim.gyro_offsets() == (0, 0, 0)
+
+
 def test_no_parts_is_a_clear_error(tmp_path):
     b, _ = board(with_parts=False)
     with pytest.raises(OSError, match="no sensor answered"):
