@@ -52,10 +52,11 @@ bench: setup
 	$(PY) -m tools bench
 
 # Sim-to-real gap diagnosis of a log (see README): make gap LOG=train.csv [WITHHELD=held.csv]
+# [EXPORT=out/model.json: the augmented model for the board, docs/augment.md]
 gap: setup
-	@test -n "$(LOG)" || { echo "usage: make gap LOG=train.csv [WITHHELD=held.csv]"; exit 2; }
+	@test -n "$(LOG)" || { echo "usage: make gap LOG=train.csv [WITHHELD=held.csv] [EXPORT=out/model.json]"; exit 2; }
 	@mkdir -p out
-	$(PY) -m tools gap $(LOG) $(if $(WITHHELD),--withheld $(WITHHELD)) --json out/gap.json --plot out/gap.png
+	$(PY) -m tools gap $(LOG) $(if $(WITHHELD),--withheld $(WITHHELD)) --json out/gap.json --plot out/gap.png $(if $(EXPORT),--export $(EXPORT))
 
 # The blind benchmark of the gap diagnosis: 27 generated cases with hidden labels
 gap-check: setup

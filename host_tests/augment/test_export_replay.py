@@ -3,6 +3,7 @@ device code in the real MicroPython VM (tools/simgap/replay.py) over a withheld 
 from our own generator (helpers/augsynth.py), one effect each, the device's shrink (augmented
 replay RMS over base-only replay RMS) equals the host's (the diagnosis' host_check RMS ratio)."""
 import json
+import os
 import subprocess
 import sys
 
@@ -112,3 +113,26 @@ def test_an_axis_whose_input_never_moves_gets_a_nominal_sensitivity_and_the_righ
     h = exp["host"]["rms"]["base_only"]["z"]
     assert abs(np.mean(y[:, 2]) + 60.0) < 0.5
     assert abs(base["rms"]["z"] * augsynth.SENS[2] - h) <= 0.05 * h + 0.1
+
+
+@pytest.mark.parametrize("name", ["tofupilot_gyro", "tofupilot_accel"])
+def test_real_logs_the_board_reproduces_the_hosts_figures(tmp_path, name):
+    # float logs (mdps, mg: raw codes chosen by the export), a still gravity axis, sensitivity not
+    # identified: on the real TofuPilot logs the board's withheld RMS equals the host's own figure
+    from tools.simgap import convert as convert_logs
+    from tools.simgap.logio import read_log
+
+    data = convert_logs.default_data_dir()
+    if not os.path.isdir(data):
+        pytest.skip("real data not found at %s" % data)
+    paths = convert_logs.convert(data, str(tmp_path))
+    train, held = (read_log(p) for p in paths[name])
+    res, _ = diagnose(train, held)
+    exp = export.build(res, train)
+    host = exp["host"]["rms"]
+    for base_only, key in ((True, "base_only"), (False, "augmented")):
+        r, _ = replay.replay(exp, held, base_only)
+        assert r["allocated_per_sample"] == 0
+        for a in "xyz":
+            # same rows (no outliers in these withheld segments); the board's rounding only
+            assert abs(r["rms"][a] * 1000 - host[key][a]) <= 0.01 * host[key][a] + 0.05, (key, a)

@@ -270,6 +270,11 @@ class Poly:
         self._a0l = a0l
         self._a = (0,) + tuple(int(round(v * _pow2(vfrac))) for v in n[1:])
         self._deg = deg
+        # eval()'s mul_shift(acc, x, h) inline, one form for every h: x << (14 - h) when
+        # h < 14 gives floor(acc * x * 2**(14-h) / 2**14) = floor(acc * x / 2**h) with
+        # |x| <= 2**14; |acc| <= 2**28, so each limb product <= 2**29 and the sum < 2**30
+        self._xl = _LIMB - h if h < _LIMB else 0
+        self._xs = h - _LIMB if h >= _LIMB else 0
         self._vs = vfrac - frac
         self._vr = (1 << (vfrac - frac - 1)) if vfrac > frac else 0
         self._vm = (1 << (vfrac - frac)) - 1
@@ -283,13 +288,16 @@ class Poly:
             return self._a0
         a = self._a
         acc = a[i]
-        x = t - self._mid
-        h = self._h
-        while i > 1:
+        x = (t - self._mid) << self._xl
+        hs = self._xs
+        while True:
+            acc = ((acc >> _LIMB) * x + (((acc & _LIMB_MASK) * x) >> _LIMB)) >> hs  # mul_shift
             i -= 1
-            acc = a[i] + mul_shift(acc, x, h)
+            if not i:
+                break
+            acc += a[i]
         # |variable part| <= sum|a[1:]| <= 2**limit; shifted down to frac and rounded
-        return self._a0 + ((mul_shift(acc, x, h) + self._vr) >> self._vs)
+        return self._a0 + ((acc + self._vr) >> self._vs)
 
     def eval_ext(self, t):
         """eval(t) with _EXT more bits: returns D and sets self.ext = R, where
@@ -299,13 +307,16 @@ class Poly:
             self.ext = self._a0l
             return self._a0h
         a = self._a
-        acc = a[i]
-        x = t - self._mid
-        h = self._h
-        while i > 1:
+        v = a[i]
+        x = (t - self._mid) << self._xl
+        hs = self._xs
+        while True:
+            v = ((v >> _LIMB) * x + (((v & _LIMB_MASK) * x) >> _LIMB)) >> hs  # mul_shift
             i -= 1
-            acc = a[i] + mul_shift(acc, x, h)
-        v = mul_shift(acc, x, h)  # |v| <= 2**limit, in units of 2**-(frac + vs)
+            if not i:
+                break
+            v += a[i]
+        # |v| <= 2**limit, in units of 2**-(frac + vs)
         vs = self._vs
         lo = v & self._vm  # 0 <= lo < 2**vs
         if vs >= _EXT:

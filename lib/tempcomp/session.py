@@ -391,7 +391,8 @@ class Session:
 
     def run(self):
         """The whole session; saves at the end. Returns None (the REPL would echo a dict after the
-        report): the result is in ``self.result``."""
+        report): the result is in ``self.result``. Quitting (``q``) ends it with a message and
+        nothing saved; a scripted session (``answers=[...]``) raises Aborted instead."""
         print("tempcomp calibration session")
         s = _sensors.open_sensors(self.board, self.which)
         self.s = s
@@ -426,6 +427,8 @@ class Session:
         except Aborted as e:
             print()
             print("session ended: %s; nothing saved" % (e,))
+            if self.answers is None:
+                return None  # a person quit: the message is the answer, not a traceback
             raise
         self._apply_and_save()
         self._report()

@@ -167,10 +167,17 @@ def build(res, train_log, sensitivity=None):
     axes = "xyz"
     # what a board can read; everything below is in these units
     out = train_log.out
-    if np.all(out == np.round(out)) and np.max(np.abs(out)) < 32768:
+    # the offsets must stay inside the raw range where the board extrapolates them (the
+    # calibrated span widened by half of it each side, fixedpoint.EXTRAPOLATE)
+    half = (tr[1] - tr[0]) / 2
+    Tx = np.linspace(tr[0] - half, tr[1] + half, 200) - t0
+    reach = max(float(np.max(np.abs(out))),
+                max(float(np.max(np.abs(np.polyval(list(reversed(g[a]["offset"])), Tx))))
+                    for g in (mod["axes"], mod["base_only"]) for a in axes))
+    if np.all(out == np.round(out)) and reach < 32768:
         raw_lsb = 1.0
     else:
-        raw_lsb = float(np.max(np.abs(out))) * 1.5 / 32767
+        raw_lsb = reach * 1.25 / 32767
     ratio = UNIT_RATIO.get((mod["out_unit"], mod["ref_unit"]))
     notes = []
     b = _Builder()
