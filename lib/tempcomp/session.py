@@ -519,7 +519,7 @@ class Session:
             saved.append(_sensors.MPU_TC)
             # its set-up for the offsets and ranges just saved: a boot then resumes it without
             # the fixed-point set-up (tempcomp.mpu6xxx_rt, docs/ram.md)
-            st.save_record(_sensors.MPU_TCC, compiled(mpu, mi), part=mpu.part)
+            st.save_record(_sensors.MPU_TCC, compiled(mpu, mi), part=mpu.part, kind=2)
             saved.append(_sensors.MPU_TCC)
         apts = [x for x in pts if "adxrs" in x]
         if s.adxrs is not None and apts:
