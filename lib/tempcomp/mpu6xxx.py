@@ -166,9 +166,9 @@ class MPU6xxx:
         self._ca = None
         self._cg = None
         self._tq = None
-        self._tsens = 1
-        self._tsens2 = 2
-        self._tzero = 0
+        self._tsens = row[TEMP_SENS]  # read_compensated's temperature, inline
+        self._tsens2 = 2 * row[TEMP_SENS]
+        self._tzero = row[TEMP_ZERO]
         self._follow_t = None
         self._target = None
         self._checked = None  # ticks_ms of the last check(every_ms=...)

@@ -15,8 +15,6 @@ with constant scales (every MPU range), with its bounds; results are bit-identic
 (host_tests/sensors/test_mpu6xxx_rt.py compares them over the whole temperature range).
 """
 
-from tempcomp.mpu6xxx_parts import TEMP_SENS, TEMP_ZERO
-
 try:
     from micropython import const
 except ImportError:
@@ -137,7 +135,3 @@ def resume(imu, v, model=None):
     imu._ca = _State(v, _HEAD)
     imu._cg = _State(v, _HEAD + _PER)
     imu._tq = None
-    row = imu._row
-    imu._tsens = row[TEMP_SENS]
-    imu._tsens2 = 2 * row[TEMP_SENS]
-    imu._tzero = row[TEMP_ZERO]

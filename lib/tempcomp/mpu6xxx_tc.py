@@ -208,8 +208,6 @@ def follow(imu, model, step_c100=50):
 def compensate(imu, model, check=None):  # check: used by the compiled form only
     # MPU6xxx.compensate(model) for a BiasModel: the fixed-point set-up, here beside the model,
     # so a boot that resumes the compiled state (tempcomp.mpu6xxx_rt) never loads it
-    from tempcomp.mpu6xxx_parts import TEMP_SENS, TEMP_ZERO
-
     gdps, ag = imu.ranges()
     cur = imu._read_offsets()
     gfs = gdps // 250
@@ -224,9 +222,6 @@ def compensate(imu, model, check=None):  # check: used by the compiled form only
     imu._cg = cg
     imu._ca = ca
     imu._tq = None  # read_compensated's last temperature step
-    imu._tsens = imu._row[TEMP_SENS]
-    imu._tsens2 = 2 * imu._tsens
-    imu._tzero = imu._row[TEMP_ZERO]
 
 
 def compiled(imu, model_ints):
