@@ -33,13 +33,22 @@ def test_scripted_session_saves_and_restore_reapplies(tmp_path, capsys):
     sess = Session(b, store_path=path, answers=[], points=1, packets=200)
     sess.run()
     r = sess.result
-    assert r["saved"] == ["mlx90609", "mpu6xxx", "mpu_tc", "adxrs"]
+    assert r["saved"] == ["mlx90609", "mpu6xxx", "mpu_tc", "mpu_tcc", "adxrs"]
+    # each record says what it holds and for which part (docs/store.md, kinds)
+    from tempcomp import store
+    st = store.Store(path)
+    got = {n: (st.record(n).kind, st.record(n).part) for n in st.names()}
+    assert got == {"mlx90609": (store.KIND_MLX_REZERO, "MLX90609"),
+                   "mpu6xxx": (store.KIND_MPU_POLY, sim.part), "mpu_tc": (store.KIND_MPU_POLY, sim.part),
+                   "mpu_tcc": (store.KIND_MPU_POLY, sim.part),
+                   "adxrs": (store.KIND_ADI_3POINT, "")}, got
     want = tuple(round(-v * 32.8) for v in BIAS)
     assert all(abs(g - w) <= 1 for g, w in zip(sim.gyro_offsets(), want)), (sim.gyro_offsets(), want)
     sim.power_cycle()
     assert sim.gyro_offsets() == (0, 0, 0)
     s = restore(b, path)
     assert s.restored == ["mlx90609", "mpu6xxx", "mpu_tc", "adxrs"]
+    assert s.model is None and type(s.mpu._cg).__name__ == "_State"  # resumed from mpu_tcc, no set-up
     assert all(abs(g - w) <= 1 for g, w in zip(sim.gyro_offsets(), want))
     assert "[####################] 100%" in capsys.readouterr().out
 

@@ -482,7 +482,7 @@ class Session:
 
     def _apply_and_save(self):
         # loaded here, at the end: the session's heap during the captures stays small (docs/ram.md)
-        from tempcomp.mpu6xxx_tc import BiasModel, merge_points
+        from tempcomp.mpu6xxx_tc import BiasModel, compiled, merge_points
         from tempcomp.store import Store
 
         s = self.s
@@ -514,8 +514,13 @@ class Session:
             model = BiasModel(mpts)
             mpu.compensate(model)
             s.model = model
-            st.save_record(_sensors.MPU_TC, model.to_ints(), part=mpu.part, kind=2)  # KIND_MPU_POLY
+            mi = model.to_ints()
+            st.save_record(_sensors.MPU_TC, mi, part=mpu.part, kind=2)  # KIND_MPU_POLY
             saved.append(_sensors.MPU_TC)
+            # its set-up for the offsets and ranges just saved: a boot then resumes it without
+            # the fixed-point set-up (tempcomp.mpu6xxx_rt, docs/ram.md)
+            st.save_record(_sensors.MPU_TCC, compiled(mpu, mi), part=mpu.part, kind=2)
+            saved.append(_sensors.MPU_TCC)
         apts = [x for x in pts if "adxrs" in x]
         if s.adxrs is not None and apts:
             self._fit_adxrs(s.adxrs, apts)
