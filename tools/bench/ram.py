@@ -98,6 +98,18 @@ imu.read_compensated(buf)
 imu.check(every_ms=1000)
 """
 
+BOOT_COMPILED = """
+from tempcomp.mpu6xxx import MPU6xxx
+from tempcomp.store import Store
+imu = MPU6xxx(ram_board.i2c())
+st = Store("{store}")
+imu.restore(st)
+imu.compensate(st.load("mpu_tcc"), st.load("mpu_tc"))
+buf = [0] * 7
+imu.read_compensated(buf)
+imu.check(every_ms=1000)
+"""
+
 BOOT_REGISTERS = """
 from tempcomp.mpu6xxx import MPU6xxx
 from tempcomp.store import Store
@@ -148,6 +160,31 @@ imu.read_compensated(buf)
 step("+ compensate(model), read_compensated")
 """
 
+# The same for the boot that resumes record mpu_tcc (tempcomp.mpu6xxx_rt): no fixed-point set-up.
+BOOT_STEPS_TCC = """
+import gc, sys
+import ram_board
+gc.collect()
+a0 = gc.mem_alloc()
+def step(n):
+    gc.collect()
+    print("STEP", n, gc.mem_alloc() - a0)
+import tempcomp.store
+step("import tempcomp.store")
+import tempcomp.mpu6xxx
+step("+ import tempcomp.mpu6xxx (bus, parts table)")
+st = tempcomp.store.Store("/ram/{store}")
+imu = tempcomp.mpu6xxx.MPU6xxx(ram_board.i2c())
+imu.restore(st)
+step("+ read the store, MPU6xxx(i2c), restore(store)")
+import tempcomp.mpu6xxx_rt
+step("+ import tempcomp.mpu6xxx_rt")
+imu.compensate(st.load("mpu_tcc"), st.load("mpu_tc"))
+buf = [0] * 7
+imu.read_compensated(buf)
+step("+ compensate(mpu_tcc, mpu_tc), read_compensated")
+"""
+
 SEED = 7
 
 
@@ -157,7 +194,7 @@ def make_store(path, seed=SEED):
     if LIB not in sys.path:
         sys.path.insert(0, LIB)
     from tempcomp.mpu6xxx import MPU6xxx
-    from tempcomp.mpu6xxx_tc import BiasModel
+    from tempcomp.mpu6xxx_tc import BiasModel, compiled
     from tempcomp.store import Store
     from tools.sim.buses import SimI2C
     from tools.sim.mpu6xxx_sim import MPU6xxxSim
@@ -172,7 +209,9 @@ def make_store(path, seed=SEED):
         pts.append(imu.bias_point(packets=200))
     st = Store(path)
     imu.save(st)
-    st.save("mpu_tc", BiasModel(pts).to_ints())
+    mi = BiasModel(pts).to_ints()
+    st.save("mpu_tc", mi)
+    st.save("mpu_tcc", compiled(imu, mi))
 
 
 def _mpy_cross(src, dst):
@@ -272,11 +311,12 @@ def bench(report, imports=True, frozen=True):
             mp = measure_import(it, staged[1], mod)
             report("AN385 heap after `import %s`: .py / .mpy" % mod, "%s / %s" % (_kb(py), _kb(mp)), "")
         _budgets(report, it, staged[1], ".mpy")
-        out = _run(it, BOOT_STEPS.format(store=STORE_NAME), staged[1])
-        for line in out.splitlines():
-            if line.startswith("STEP "):
-                name, v = line[5:].rsplit(" ", 1)
-                report("AN385 boot path from .mpy, cumulative: %s" % name, _kb(int(v)), "")
+        for how, steps in (("", BOOT_STEPS), (" (mpu_tcc)", BOOT_STEPS_TCC)):
+            out = _run(it, steps.format(store=STORE_NAME), staged[1])
+            for line in out.splitlines():
+                if line.startswith("STEP "):
+                    name, v = line[5:].rsplit(" ", 1)
+                    report("AN385 boot path%s from .mpy, cumulative: %s" % (how, name), _kb(int(v)), "")
     finally:
         it.close()
     if frozen:
@@ -305,7 +345,8 @@ def _budgets(report, it, staged, how, frozen=False):
     report("AN385 `import tempcomp.session` from %s (budget %d KB)" % (how, BUDGET_SESSION // 1024),
            "%s (%s)" % (_kb(ses), "ok" if ses is not None and ses <= BUDGET_SESSION else "OVER"), "")
     for label, body in (("sensors.restore(board, which=mpu6xxx) + read_compensated", BOOT_SENSORS),
-                        ("MPU6xxx.restore + compensate + read_compensated", BOOT_DRIVER),
+                        ("MPU6xxx.restore + compensate(BiasModel) + read_compensated", BOOT_DRIVER),
+                        ("MPU6xxx.restore + compensate(mpu_tcc) + read_compensated", BOOT_COMPILED),
                         ("MPU6xxx.restore (offset registers) + read_raw", BOOT_REGISTERS)):
         v, _ = measure_boot(it, staged, body, frozen)
         report("AN385 boot path from %s: %s (budget %d KB)" % (how, label, BUDGET_BOOT // 1024),
