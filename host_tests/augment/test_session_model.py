@@ -34,8 +34,10 @@ def model_file(tmp_path_factory):
 @pytest.mark.parametrize("answer, points", [("i", 0), ("a", 1)])
 def test_session_loads_the_model_instead_or_after(tmp_path, model_file, answer, points, capsys):
     path = str(tmp_path / "t.cal")
-    r = Session(mpu_board(), store_path=path, which=("mpu6xxx",), answers=["", "", answer], points=1,
-                packets=200, model=model_file).run()
+    sess = Session(mpu_board(), store_path=path, which=("mpu6xxx",), answers=["", "", answer], points=1,
+                   packets=200, model=model_file)
+    sess.run()
+    r = sess.result
     assert len(r.get("points") or []) == points
     assert r["saved"][-1] == "gyro_aug"
     assert "drift" in r["model"]["effects"]
@@ -57,8 +59,10 @@ def test_a_bad_model_file_is_named_and_can_be_skipped(tmp_path):
     bad = tmp_path / "model.json"
     bad.write_text('{"store": {"values": [2], "frac": [0]}}')
     path = str(tmp_path / "t.cal")
-    r = Session(mpu_board(), store_path=path, which=("mpu6xxx",), answers=["", "", "i", "s"], points=1,
-                packets=200, model=str(bad)).run()
+    sess = Session(mpu_board(), store_path=path, which=("mpu6xxx",), answers=["", "", "i", "s"], points=1,
+                   packets=200, model=str(bad))
+    sess.run()
+    r = sess.result
     assert "model" not in r and r["saved"] == ["mpu6xxx"]
     with pytest.raises(Aborted):
         Session(mpu_board(), store_path=path, which=("mpu6xxx",), answers=["", "", "i", "q"], points=1,

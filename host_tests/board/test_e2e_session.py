@@ -151,7 +151,7 @@ def test_session_knock_redo_reset_power_cycle_and_compensated_reads(board):
     assert "the part moved during capture" in out, out
     assert "keep it still" in out
     assert "redo:" in out
-    assert "saved to /tempcomp.cal: mlx90609, mpu6xxx, mpu_tc, adxrs" in out, out
+    assert "saved to /tempcomp.cal: mlx90609, mpu6xxx, mpu_tc, mpu_tcc, adxrs" in out, out
     assert out.count("point at") == 3
     check_offsets(tagged(out, "OFFSETS"))
 

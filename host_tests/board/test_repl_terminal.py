@@ -104,6 +104,7 @@ def test_repl_in_a_terminal_runs_the_first_session_step(tmp_path):
         term.type_line("q")
         term.wait_for("nothing saved")
         term.wait_prompt()
+        assert "Traceback" not in term.screen()  # quitting is an answer, not an error
 
         term.keys("C-]")
         deadline = time.monotonic() + 30

@@ -33,13 +33,22 @@ def test_scripted_session_saves_and_restore_reapplies(tmp_path, capsys):
     sess = Session(b, store_path=path, answers=[], points=1, packets=200)
     sess.run()
     r = sess.result
-    assert r["saved"] == ["mlx90609", "mpu6xxx", "mpu_tc", "adxrs"]
+    assert r["saved"] == ["mlx90609", "mpu6xxx", "mpu_tc", "mpu_tcc", "adxrs"]
+    # each record says what it holds and for which part (docs/store.md, kinds)
+    from tempcomp import store
+    st = store.Store(path)
+    got = {n: (st.record(n).kind, st.record(n).part) for n in st.names()}
+    assert got == {"mlx90609": (store.KIND_MLX_REZERO, "MLX90609"),
+                   "mpu6xxx": (store.KIND_MPU_POLY, sim.part), "mpu_tc": (store.KIND_MPU_POLY, sim.part),
+                   "mpu_tcc": (store.KIND_MPU_POLY, sim.part),
+                   "adxrs": (store.KIND_ADI_3POINT, "")}, got
     want = tuple(round(-v * 32.8) for v in BIAS)
     assert all(abs(g - w) <= 1 for g, w in zip(sim.gyro_offsets(), want)), (sim.gyro_offsets(), want)
     sim.power_cycle()
     assert sim.gyro_offsets() == (0, 0, 0)
     s = restore(b, path)
     assert s.restored == ["mlx90609", "mpu6xxx", "mpu_tc", "adxrs"]
+    assert s.model is None and type(s.mpu._cg).__name__ == "_State"  # resumed from mpu_tcc, no set-up
     assert all(abs(g - w) <= 1 for g, w in zip(sim.gyro_offsets(), want))
     assert "[####################] 100%" in capsys.readouterr().out
 
@@ -54,6 +63,17 @@ def test_skip_and_quit(tmp_path):
     with pytest.raises(Aborted):
         Session(b, store_path=path, which=("mpu6xxx",), answers=["q"]).run()
     assert not os.path.exists(path)
+
+
+def test_a_person_quitting_gets_a_message_not_a_traceback(tmp_path, monkeypatch, capsys):
+    # at the REPL (no scripted answers) "q" ends the session with its message; nothing raised
+    b, sim = board()
+    path = str(tmp_path / "t.cal")
+    typed = []
+    monkeypatch.setattr("builtins.input", lambda prompt="": typed.append(prompt) or "q")
+    assert Session(b, store_path=path, which=("mpu6xxx",)).run() is None
+    assert "session ended: quit at step 'still'; nothing saved" in capsys.readouterr().out
+    assert typed and not os.path.exists(path) and sim.gyro_offsets() == (0, 0, 0)
 
 
 def test_no_parts_is_a_clear_error(tmp_path):

@@ -67,7 +67,7 @@ def test_turning_during_the_zero_is_refused_and_redone(tmp_path, capsys, part, t
            "zro": "was the board turning? Nothing written",
            "gravity": "the part turned during capture"}[caught_by]
     assert msg in out, out
-    assert r["saved"] == ["mpu6xxx", "mpu_tc"]
+    assert r["saved"] == ["mpu6xxx", "mpu_tc", "mpu_tcc"]
     g = Store(path).load("mpu6xxx")[1:4]
     assert all(abs(x - w) <= 2 for x, w in zip(g, want_gyro())), (g, want_gyro())
     assert max(abs(v) for v in r["residual"][0]) <= 0.2

@@ -328,12 +328,12 @@ def test_detach_then_stop(tmp_path):
     r = subprocess.run(base + ["--detach", "--port", "0", "--flash", str(tmp_path / "flash")],
                        capture_output=True, text=True, timeout=START_TIMEOUT + 5)
     assert r.returncode == 0, r.stdout + r.stderr
-    port = int(r.stdout.split("socket://127.0.0.1:")[1].split()[0])
-    pid = json.loads(pidfile.read_text())["pid"]
-    # the banner of a board in the background names the REPL command and how to stop it
-    assert "REPL: mpremote connect %s repl" % (tmp_path / "tty") in r.stdout, r.stdout
-    assert "stop: make board-stop" in r.stdout and "Ctrl-C" not in r.stdout
     try:
+        port = int(r.stdout.split("socket://127.0.0.1:")[1].split()[0])
+        pid = json.loads(pidfile.read_text())["pid"]
+        # the banner of a board in the background names the REPL command and how to stop it
+        assert "REPL: mpremote connect %s repl" % (tmp_path / "tty") in r.stdout, r.stdout
+        assert "stop: make board-stop" in r.stdout and "Ctrl-C" not in r.stdout
         b = VirtualBoard(tmp_path / "flash")
         b.port = port
         assert b.mpremote("eval", "1 + 1").stdout.strip() == "2"

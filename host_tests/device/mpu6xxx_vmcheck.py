@@ -10,7 +10,7 @@ from array import array
 from replay_i2c import ReplayI2C
 
 from tempcomp.mpu6xxx import MAX_PACKETS, MPU6xxx
-from tempcomp.mpu6xxx_tc import BiasModel
+from tempcomp.mpu6xxx_tc import BiasModel, compiled
 from tools.sim.buses import SimI2C
 from tools.sim.mpu6xxx_sim import MPU6xxxSim
 
@@ -64,6 +64,9 @@ def allocations():
     out = array("i", [0] * 7)
     allocprobe.report("mpu_read_compensated", imu.read_compensated, (out,), 200)
     allocprobe.report("mpu_temp_c100", imu.temp_c100, (), 200)
+    mi = model.to_ints()
+    imu.compensate(compiled(imu, mi), mi)  # the boot form (tempcomp.mpu6xxx_rt)
+    allocprobe.report("mpu_read_compensated_resumed", imu.read_compensated, (out,), 200)
     print("GOT %d" % imu._cal()._got)
 
 
@@ -86,6 +89,12 @@ def compensation_grid():
             print("COMP %d %d %s" % (t, raw, " ".join([str(v) for v in outs])))
         g, a = model.targets(t)
         print("TGT %d %s" % (t, " ".join([str(v) for v in tuple(g) + tuple(a)])))
+    mi = model.to_ints()
+    imu.compensate(compiled(imu, mi), mi)  # the boot form: its per-temperature numbers
+    for t in (t0 - 2600, t0 - 2000, t0 - 777, t0, t0 + 1234, t0 + 2000, t0 + 3000):
+        imu._ca.update(t)
+        imu._cg.update(t)
+        print("RT %d %s" % (t, " ".join([str(v) for v in list(imu._ca._p3) + list(imu._cg._p3)])))
     for raw in (-32768, -12345, -1, 0, 1, 9999, 32767):
         print("TEMP %d %d" % (raw, imu.temp_c100(raw)))
 

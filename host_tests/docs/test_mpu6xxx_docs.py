@@ -81,7 +81,7 @@ def test_snippets_run_against_the_simulated_part(fake_machine, tmp_path):
     from tempcomp.mpu6xxx import MPU6xxx
 
     snippets = [b for lang, b in blocks() if lang == ""]
-    assert len(snippets) == 4
+    assert len(snippets) == 5
     i2c = machine.I2C(0)
     imu = MPU6xxx(i2c)
     imu.calibrate(packets=200)

@@ -6,7 +6,7 @@ A snippet opts in with a marker on the line before its code fence:
 * ``<!-- check: board-sh -->``: each line is a shell command (mpremote, make, python -m tools),
   run from the repository root with the .venv first on PATH;
 * ``<!-- check: board-repl -->``: the block is Python typed at the board's REPL, run with
-  ``mpremote exec``.
+  ``mpremote exec``; ``<!-- check: board-repl expect: TEXT -->`` also wants TEXT in its output.
 
 The documented address ``socket://127.0.0.1:2323`` and tty ``build/vboard/tty`` are replaced by
 the test board's own (a free port, its own flash), and each file's snippets run in order on one
@@ -22,12 +22,12 @@ from pathlib import Path
 import pytest
 from vboard_line import REPO, VirtualBoard
 
-MARK = re.compile(r"<!-- check: (board-sh|board-repl) -->\n```[a-z]*\n(.*?)```", re.S)
+MARK = re.compile(r"<!-- check: (board-sh|board-repl)(?: expect: (.*?))? -->\n```[a-z]*\n(.*?)```", re.S)
 PAGES = [REPO / "README.md"] + sorted((REPO / "docs").glob("*.md"))
 
 
 def snippets(page):
-    return [(m.group(1), m.group(2)) for m in MARK.finditer(page.read_text())]
+    return [(m.group(1), m.group(3), m.group(2)) for m in MARK.finditer(page.read_text())]
 
 
 MARKED = [p for p in PAGES if snippets(p)]
@@ -53,7 +53,7 @@ def test_board_snippets_run_as_written(page, tmp_path):
             text = text.replace("socket://127.0.0.1:2323", b.url)
             return text.replace("build/vboard/tty", b.pty or "build/vboard/tty")
 
-        for kind, body in snippets(page):
+        for kind, body, expect in snippets(page):
             if kind == "board-sh":
                 for line in body.splitlines():
                     line = line.split("  #")[0].strip()
@@ -68,5 +68,7 @@ def test_board_snippets_run_as_written(page, tmp_path):
                 r = b.mpremote("exec", body, timeout=300, check=False)
                 out = r.stdout + r.stderr
                 assert r.returncode == 0 and "Traceback" not in out, "%s:\n%s\n%s" % (page.name, body, out)
+                if expect:
+                    assert expect in out, "%s: %r not in the output of\n%s\n%s" % (page.name, expect, body, out)
     finally:
         b.stop()

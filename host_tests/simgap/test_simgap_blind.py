@@ -42,3 +42,9 @@ def test_withheld_residual_within_25_percent_of_true_noise(rows):
     assert not bad
     # ... and the effects were real gaps to begin with.
     assert all(r["ratio_before"] > 1.05 for r in rows if r["truth"])
+
+
+def test_where_by_excess_over_the_floor(rows):
+    # An effect case's top cell carries energy above the noise floor; a no-effect case lists none.
+    bad = [r["case"] for r in rows if not r["where_ok"]]
+    assert not bad

@@ -216,7 +216,8 @@ class Poly:
     that all Horner partial sums stay <= 2**limit. Zero allocation per ``eval``.
     """
 
-    def __init__(self, coeffs, t_range, t_ref=0, limit=_VALUE_BITS, max_frac=60):
+    def __init__(self, coeffs, t_range, t_ref=0, limit=_VALUE_BITS, max_frac=60, div=1.0, sub=0):
+        # the polynomial is (sum coeffs[i] (t - t_ref)**i - sub) / div (div > 0, sub an int)
         _check_coeffs("polynomial", coeffs)
         t_lo, t_hi = _check_range("temperature range", t_range)
         mid = (t_lo + t_hi) // 2
@@ -225,7 +226,9 @@ class Poly:
         while (1 << h) < half:
             h += 1
         # coefficients of x = (t - mid) / 2**h, so |x| <= 1 over the range
-        b = shift_basis(coeffs, t_ref, mid)
+        fc = [float(c) for c in coeffs]
+        fc[0] -= sub
+        b = [v / div for v in shift_basis(fc, t_ref, mid)]
         n = [b[j] * _pow2(h * j) for j in range(len(b))]
         while len(n) > 1 and n[-1] == 0:
             n.pop()
@@ -257,19 +260,36 @@ class Poly:
         self.t_range = (t_lo, t_hi)
         self._mid = mid
         self._h = h
-        self._a0 = int(round(n[0] * _pow2(frac)))
-        # the constant again with _EXT more bits, as a0h + a0l / 2**_EXT (0 <= a0l < 2**_EXT),
-        # for eval_ext(); two small ints, no long int even where there are none
-        f0 = n[0] * _pow2(frac)
-        a0h = int(f0 // 1.0)
-        a0l = int(round((f0 - a0h) * _pow2(_EXT)))
-        if a0l >= (1 << _EXT):
-            a0h += 1
-            a0l -= 1 << _EXT
-        self._a0h = a0h
-        self._a0l = a0l
-        self._a = (0,) + tuple(int(round(v * _pow2(vfrac))) for v in n[1:])
+        ex = None
+        try:
+            ex = _exact_coeffs(coeffs, t_ref, mid, h, frac, vfrac, deg, div, sub)
+        except (OverflowError, ValueError, TypeError):
+            pass  # a build without long ints: the float path below
+        if ex is not None:
+            a0x = ex[0]
+            self._a0 = (a0x + (1 << (_EXT - 1))) >> _EXT
+            self._a0h = a0x >> _EXT
+            self._a0l = a0x & _EXT_MASK
+            self._a = (0,) + tuple(ex[1:])
+        else:
+            self._a0 = int(round(n[0] * _pow2(frac)))
+            # the constant again with _EXT more bits, as a0h + a0l / 2**_EXT
+            # (0 <= a0l < 2**_EXT), for eval_ext(); two small ints
+            f0 = n[0] * _pow2(frac)
+            a0h = int(f0 // 1.0)
+            a0l = int(round((f0 - a0h) * _pow2(_EXT)))
+            if a0l >= (1 << _EXT):
+                a0h += 1
+                a0l -= 1 << _EXT
+            self._a0h = a0h
+            self._a0l = a0l
+            self._a = (0,) + tuple(int(round(v * _pow2(vfrac))) for v in n[1:])
         self._deg = deg
+        # eval()'s mul_shift(acc, x, h) inline, one form for every h: x << (14 - h) when
+        # h < 14 gives floor(acc * x * 2**(14-h) / 2**14) = floor(acc * x / 2**h) with
+        # |x| <= 2**14; |acc| <= 2**28, so each limb product <= 2**29 and the sum < 2**30
+        self._xl = _LIMB - h if h < _LIMB else 0
+        self._xs = h - _LIMB if h >= _LIMB else 0
         self._vs = vfrac - frac
         self._vr = (1 << (vfrac - frac - 1)) if vfrac > frac else 0
         self._vm = (1 << (vfrac - frac)) - 1
@@ -283,13 +303,16 @@ class Poly:
             return self._a0
         a = self._a
         acc = a[i]
-        x = t - self._mid
-        h = self._h
-        while i > 1:
+        x = (t - self._mid) << self._xl
+        hs = self._xs
+        while True:
+            acc = ((acc >> _LIMB) * x + (((acc & _LIMB_MASK) * x) >> _LIMB)) >> hs  # mul_shift
             i -= 1
-            acc = a[i] + mul_shift(acc, x, h)
+            if not i:
+                break
+            acc += a[i]
         # |variable part| <= sum|a[1:]| <= 2**limit; shifted down to frac and rounded
-        return self._a0 + ((mul_shift(acc, x, h) + self._vr) >> self._vs)
+        return self._a0 + ((acc + self._vr) >> self._vs)
 
     def eval_ext(self, t):
         """eval(t) with _EXT more bits: returns D and sets self.ext = R, where
@@ -299,13 +322,16 @@ class Poly:
             self.ext = self._a0l
             return self._a0h
         a = self._a
-        acc = a[i]
-        x = t - self._mid
-        h = self._h
-        while i > 1:
+        v = a[i]
+        x = (t - self._mid) << self._xl
+        hs = self._xs
+        while True:
+            v = ((v >> _LIMB) * x + (((v & _LIMB_MASK) * x) >> _LIMB)) >> hs  # mul_shift
             i -= 1
-            acc = a[i] + mul_shift(acc, x, h)
-        v = mul_shift(acc, x, h)  # |v| <= 2**limit, in units of 2**-(frac + vs)
+            if not i:
+                break
+            v += a[i]
+        # |v| <= 2**limit, in units of 2**-(frac + vs)
         vs = self._vs
         lo = v & self._vm  # 0 <= lo < 2**vs
         if vs >= _EXT:
@@ -320,6 +346,53 @@ class Poly:
         """(min, max) of the float polynomial over t_range (set-up use)."""
         lo, hi = self.t_range
         return _extrema(self._coeffs_mid, lo - self._mid, hi - self._mid)
+
+
+def _exact_float(x):
+    # (m, e) with x == m * 2**e exactly: doubling a binary float is exact (set-up only)
+    x = float(x)
+    e = 0
+    while x != int(x):
+        x *= 2.0
+        e -= 1
+    return int(x), e
+
+
+def _round_div(num, den):
+    # round(num / den) for den > 0, halves up; exact on ints of any size
+    return (2 * num + den) // (2 * den)
+
+
+def _exact_coeffs(coeffs, t_ref, mid, h, frac, vfrac, deg, div, sub):
+    """The fixed-point coefficients computed exactly from the floats as given (set-up).
+
+    Float steps in single precision (the Cortex-M3 firmware) err by 2**-24 relative: dividing
+    by out_scale, re-expanding about the range's middle. Here every float is taken as the exact
+    binary fraction it is and the rest is integer arithmetic (long ints, set-up only): [a0 with
+    _EXT more bits than frac, then a_1..a_deg at vfrac]. Returns None where t_ref is no int.
+    """
+    if t_ref != int(t_ref):
+        return None
+    d = mid - int(t_ref)
+    ms = [_exact_float(c) for c in coeffs]
+    md, ed = _exact_float(div)
+    if md <= 0:
+        return None
+    E = min([e for _, e in ms] + [0])
+    M = [m << (e - E) for m, e in ms]
+    M[0] -= sub << -E
+    out = []
+    for j in range(deg + 1):
+        # coefficient j of powers of (t - mid), times 2**-E: sum_i M_i C(i, j) d**(i - j)
+        bj = 0
+        for i in range(j, len(M)):
+            bj += M[i] * _binomial(i, j) * d ** (i - j)
+        k = E + h * j + (frac + _EXT if j == 0 else vfrac) - ed
+        if k >= 0:
+            out.append(_round_div(bj << k, md))
+        else:
+            out.append(_round_div(bj, md << -k))
+    return out
 
 
 def quadratic_through(p0, p1, p2, t_ref=0):
@@ -414,9 +487,7 @@ class Compensator:
             _check_coeffs("offset[%d]" % k, offsets[k])
             _check_coeffs("scale[%d]" % k, scales[k])
             o = [float(c) for c in offsets[k]]
-            o[0] -= mid
-            s = [float(c) / out_scale for c in scales[k]]
-            sp = Poly(s, ev, t_ref, limit=_DIV_BITS)
+            sp = Poly([float(c) for c in scales[k]], ev, t_ref, limit=_DIV_BITS, div=out_scale)
             s_min, s_max = sp.extrema()
             if not s_min > 0:
                 raise ValueError(
@@ -457,7 +528,7 @@ class Compensator:
                 if self._eg[k] - 28 - _WIDE >= 0:
                     self._wg[k] = self._eg[k] - 28 - _WIDE
         for k in range(n):
-            self._set_offset(k, offs[k], ev, t_ref, "offset[%d]" % k)
+            self._set_offset(k, offs[k], ev, t_ref, "offset[%d]" % k, mid)
         self._gh = [0] * n
         self._gl = [0] * n
         self._b = [0] * n
@@ -498,10 +569,10 @@ class Compensator:
             self.apply_be16 = self._be16_3
             self.apply_be16_n = self._be16_3n
 
-    def _set_offset(self, k, coeffs, t_range, t_ref, what):
+    def _set_offset(self, k, coeffs, t_range, t_ref, what, sub=0):
         # Offset polynomial k in fixed point and its exponent in update()'s division
         # (Boff = off * gain * 2**S). |offset - raw_mid| <= 2**(K+1) keeps |Boff| <= 2**29.
-        op = Poly(coeffs, t_range, t_ref, limit=_VALUE_BITS, max_frac=self._s + self._sc[k].frac)
+        op = Poly(coeffs, t_range, t_ref, limit=_VALUE_BITS, max_frac=self._s + self._sc[k].frac, sub=sub)
         o_min, o_max = op.extrema()
         reach = max(-o_min, o_max)
         if reach > (2 << self._k):

@@ -166,9 +166,9 @@ class MPU6xxx:
         self._ca = None
         self._cg = None
         self._tq = None
-        self._tsens = 1
-        self._tsens2 = 2
-        self._tzero = 0
+        self._tsens = row[TEMP_SENS]  # read_compensated's temperature, inline
+        self._tsens2 = 2 * row[TEMP_SENS]
+        self._tzero = row[TEMP_ZERO]
         self._follow_t = None
         self._target = None
         self._checked = None  # ticks_ms of the last check(every_ms=...)
@@ -395,30 +395,21 @@ class MPU6xxx:
             self._write_u8(reg, (r & ~0x18) | opts.index(val) << 3)
 
     # ---- temperature-dependent bias ---------------------------------------------------------
-    def compensate(self, model):
+    def compensate(self, model, check=None):
         """Software offset(T): set up read_compensated() for the present ranges and offsets.
 
-        ``model`` is a ``tempcomp.mpu6xxx_tc.BiasModel``. The offsets the part holds now are
-        taken as the base: keep them (and the ranges) unchanged while using read_compensated().
+        ``model`` is a ``tempcomp.mpu6xxx_tc.BiasModel``: the offsets the part holds now are
+        taken as the base; keep them (and the ranges) unchanged while using read_compensated().
+        Or ``model`` is the record ``mpu_tcc`` (``tempcomp.mpu6xxx_tc.compiled``), the same
+        set-up computed at calibration, and ``check`` the ``mpu_tc`` record it was built from:
+        a boot then loads no fixed-point set-up code (``tempcomp.mpu6xxx_rt``, docs/ram.md).
         """
-        # imported here: a board that never compensates never loads the fixed-point core
-        from tempcomp.fixedpoint import Compensator
-
-        gdps, ag = self.ranges()
-        cur = self._read_offsets()
-        gfs = gdps // 250
-        afs = ag // 2
-        k_g = _GYRO_STEP / gfs  # output LSB per gyro register LSB
-        k_a = _ACCEL_STEP / afs  # output LSB per accel word LSB
-        offs_g = [model.offset_poly(k, cur[k], k_g) for k in range(3)]
-        offs_a = [model.offset_poly(3 + k, cur[3 + k] & ~1, k_a) for k in range(3)]
-        t_cal = model.t_cal
-        self._cg = Compensator(offs_g, [[_GYRO_LSB_DPS / gfs]] * 3, t_cal, out_scale=1000, t_ref=model.t_ref, policy=model.policy)
-        self._ca = Compensator(offs_a, [[_ACCEL_LSB_G / afs]] * 3, t_cal, out_scale=1000, t_ref=model.t_ref, policy=model.policy)
-        self._tq = None  # read_compensated's last temperature step
-        self._tsens = self._row[TEMP_SENS]
-        self._tsens2 = 2 * self._tsens
-        self._tzero = self._row[TEMP_ZERO]
+        # imported here: a board that never compensates never loads either
+        if hasattr(model, "offset_poly"):
+            from tempcomp.mpu6xxx_tc import compensate
+        else:
+            from tempcomp.mpu6xxx_rt import resume as compensate
+        compensate(self, model, check)
 
     def read_compensated(self, out):
         """out[0..2] accel mg, out[3..5] gyro mdps, out[6] degC/100; zero allocation."""

@@ -203,3 +203,50 @@ def follow(imu, model, step_c100=50):
     )
     imu._follow_t = t
     return True
+
+
+def compensate(imu, model, check=None):  # check: used by the compiled form only
+    # MPU6xxx.compensate(model) for a BiasModel: the fixed-point set-up, here beside the model,
+    # so a boot that resumes the compiled state (tempcomp.mpu6xxx_rt) never loads it
+    gdps, ag = imu.ranges()
+    cur = imu._read_offsets()
+    gfs = gdps // 250
+    afs = ag // 2
+    k_g = 4 / gfs  # output LSB per gyro register LSB (one +-1000 dps LSB = 4 LSB at +-250 dps)
+    k_a = 8 / afs  # output LSB per accel word LSB (2048 LSB/g words, 16384 LSB/g at +-2 g)
+    offs_g = [model.offset_poly(k, cur[k], k_g) for k in range(3)]
+    offs_a = [model.offset_poly(3 + k, cur[3 + k] & ~1, k_a) for k in range(3)]
+    t_cal = model.t_cal
+    cg = Compensator(offs_g, [[131 / gfs]] * 3, t_cal, out_scale=1000, t_ref=model.t_ref, policy=model.policy)
+    ca = Compensator(offs_a, [[16384 / afs]] * 3, t_cal, out_scale=1000, t_ref=model.t_ref, policy=model.policy)
+    imu._cg = cg
+    imu._ca = ca
+    imu._tq = None  # read_compensated's last temperature step
+
+
+def compiled(imu, model_ints):
+    """Record ``mpu_tcc``: the per-sample integers that ``imu.compensate(BiasModel.from_ints(
+    model_ints))`` computes for the present ranges and offsets, for a boot that should not load
+    the set-up: ``imu.compensate(mpu_tcc, mpu_tc)`` (tempcomp.mpu6xxx_rt), bit-identical.
+
+    model_ints is the ``mpu_tc`` record (``model.to_ints()``). The imu's own compensation, if
+    any, is left as it was.
+    """
+    from tempcomp.mpu6xxx_rt import LENGTH, VERSION, model_hash
+
+    gdps, ag = imu.ranges()
+    cur = imu._read_offsets()
+    saved = (imu._ca, imu._cg, imu._tq)
+    try:
+        compensate(imu, BiasModel.from_ints(model_ints))
+        out = [VERSION, model_hash(model_ints), gdps, ag] + list(cur)
+        for c in (imu._ca, imu._cg):
+            if c is None or c._p3 is None or min(c._fd) < 0:
+                raise ValueError("compiled(): needs 3 int16 axes with constant scales")
+            out += [c._t_lo, c._t_hi, c._fxm, c._fxl, c._fxs, c._half, c._k, c._s]
+            out += list(c._gh) + list(c._gl) + list(c._fd) + list(c._fs) + list(c._fq)
+    finally:
+        imu._ca, imu._cg, imu._tq = saved
+    if len(out) != LENGTH:
+        raise ValueError("compiled(): %d values, expected %d" % (len(out), LENGTH))
+    return out

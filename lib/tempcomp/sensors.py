@@ -34,6 +34,7 @@ STORE_PATH = "/tempcomp.cal"
 MLX = "mlx90609"
 MPU = "mpu6xxx"
 MPU_TC = "mpu_tc"
+MPU_TCC = "mpu_tcc"  # mpu_tc's set-up for the saved ranges and offsets (tempcomp.mpu6xxx_tc.compiled)
 ADXRS = "adxrs"
 ALL = (MLX, MPU, ADXRS)
 
@@ -53,7 +54,7 @@ class Sensors:
         self.mlx = None  # type: MLX90609 | None
         self.mpu = None  # type: MPU6xxx | None
         self.adxrs = None  # type: AnalogGyro | None
-        self.model = None  # type: BiasModel | None  # the MPU's offset(T), once calibrated or restored
+        self.model = None  # type: BiasModel | None  # the MPU's offset(T) model (None when resumed from mpu_tcc)
         self.missing = {}  # type: dict
         self.restored = []  # type: list
         self.adxrs_mv_per_dps = float(getattr(board, "ADXRS_MV_PER_DPS", 6.0))
@@ -90,7 +91,7 @@ class Sensors:
             if mpu._target is not None:  # offsets written here: keep them (ICM-20602 trim)
                 mpu.check(every_ms=_CHECK_MS)
             regs = mpu.offsets()[0]
-            tc = self.model is not None
+            tc = mpu._cg is not None  # software offset(T): a BiasModel, or its mpu_tcc record
             for _ in range(n):
                 if tc:
                     mpu.read_compensated(b)
@@ -211,11 +212,22 @@ def restore(board, path=STORE_PATH, which=ALL, verbose=True):
             mpu.restore(st, MPU)
             s.restored.append(MPU)
         if MPU_TC in names:
-            from tempcomp.mpu6xxx_tc import BiasModel
+            mi = st.load(MPU_TC)
+            done = False
+            if MPU_TCC in names:
+                # the set-up computed at calibration (tempcomp.mpu6xxx_rt): no fixed-point set-up
+                # at boot; refused (ValueError) when the part holds other ranges or offsets
+                try:
+                    mpu.compensate(st.load(MPU_TCC), mi)
+                    done = True
+                except ValueError:
+                    pass
+            if not done:
+                from tempcomp.mpu6xxx_tc import BiasModel
 
-            model = BiasModel.from_ints(st.load(MPU_TC))
-            mpu.compensate(model)
-            s.model = model
+                model = BiasModel.from_ints(mi)
+                mpu.compensate(model)
+                s.model = model
             s.restored.append(MPU_TC)
     if s.adxrs is not None and ADXRS in names:
         s.adxrs.load_record(st.load(ADXRS))

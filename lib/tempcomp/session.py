@@ -391,7 +391,8 @@ class Session:
 
     def run(self):
         """The whole session; saves at the end. Returns None (the REPL would echo a dict after the
-        report): the result is in ``self.result``."""
+        report): the result is in ``self.result``. Quitting (``q``) ends it with a message and
+        nothing saved; a scripted session (``answers=[...]``) raises Aborted instead."""
         print("tempcomp calibration session")
         s = _sensors.open_sensors(self.board, self.which)
         self.s = s
@@ -426,6 +427,8 @@ class Session:
         except Aborted as e:
             print()
             print("session ended: %s; nothing saved" % (e,))
+            if self.answers is None:
+                return None  # a person quit: the message is the answer, not a traceback
             raise
         self._apply_and_save()
         self._report()
@@ -479,7 +482,7 @@ class Session:
 
     def _apply_and_save(self):
         # loaded here, at the end: the session's heap during the captures stays small (docs/ram.md)
-        from tempcomp.mpu6xxx_tc import BiasModel, merge_points
+        from tempcomp.mpu6xxx_tc import BiasModel, compiled, merge_points
         from tempcomp.store import Store
 
         s = self.s
@@ -511,8 +514,13 @@ class Session:
             model = BiasModel(mpts)
             mpu.compensate(model)
             s.model = model
-            st.save_record(_sensors.MPU_TC, model.to_ints(), part=mpu.part, kind=2)  # KIND_MPU_POLY
+            mi = model.to_ints()
+            st.save_record(_sensors.MPU_TC, mi, part=mpu.part, kind=2)  # KIND_MPU_POLY
             saved.append(_sensors.MPU_TC)
+            # its set-up for the offsets and ranges just saved: a boot then resumes it without
+            # the fixed-point set-up (tempcomp.mpu6xxx_rt, docs/ram.md)
+            st.save_record(_sensors.MPU_TCC, compiled(mpu, mi), part=mpu.part, kind=2)
+            saved.append(_sensors.MPU_TCC)
         apts = [x for x in pts if "adxrs" in x]
         if s.adxrs is not None and apts:
             self._fit_adxrs(s.adxrs, apts)

@@ -61,7 +61,7 @@ class VirtualBoard:
         e.update(self.env)
         e.update(env or {})
         port = self.port if self.port is not None else self.port_arg
-        cmd = [NODE, SERVER, "--port", str(port), "--flash", self.flash,
+        cmd = [NODE, "--disallow-code-generation-from-strings", SERVER, "--port", str(port), "--flash", self.flash,
                "--pidfile", os.path.join(self.home, "board.pid")]
         self.lines = []
         self.proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,

@@ -97,7 +97,7 @@ clock = vboard.board.clock_ms
 t0 = clock()
 while clock() - t0 < %(secs)d * 1000:
     r = s.read(8)
-    time.sleep_ms(40)  # a reading every 40 ms of board time (160 ms of the chamber's, x4)
+    time.sleep_ms(100)  # a reading every 0.1 s of board time (0.4 s of the chamber's, x4)
     print("ROW", repr(((clock() - t0) / 1000, w.temperature_c(), r)))
 """
 

@@ -6,7 +6,9 @@ a target is missed:
   - every single-effect case names its effect first;
   - both effects of every pair are in the verdict;
   - no effect is claimed on the no-effect cases;
-  - the withheld residual after the fix is within 25 % of the true noise floor (on every axis).
+  - the withheld residual after the fix is within 25 % of the true noise floor (on every axis);
+  - "where" (cells by excess energy over the noise floor): an effect case's top cell has a
+    positive excess, a no-effect case lists no cell.
 """
 import argparse
 import sys
@@ -32,9 +34,13 @@ def score_case(lab):
     else:
         ok = all(e in verdict for e in truth)
     extra = [e for e in verdict if e not in truth]
+    # "Where" by excess over the noise floor: a case with an effect has a top cell whose
+    # energy above the floor is positive; a case without one lists no cell at all.
+    where = res["where"]
+    where_ok = (bool(where) and where[0].get("excess", 0) > 0) if truth else not where
     return {"case": lab["case"], "truth": truth, "verdict": verdict, "attributed": ok,
             "extra": extra, "ratio": ratio, "ratio_before": before,
-            "shrink_ok": ratio <= SHRINK_TARGET}
+            "shrink_ok": ratio <= SHRINK_TARGET, "where_ok": where_ok}
 
 
 def run(seed=1, full=True, outdir=None):
@@ -60,13 +66,14 @@ def summary(rows):
     L.append(f"no-effect cases with nothing claimed: {frac(nones, 'attributed')} "
              f"(false positives: {sum(len(r['verdict']) for r in nones)})")
     L.append(f"extra effects claimed on effect cases: {sum(len(r['extra']) for r in singles + pairs)}")
+    L.append(f"where: top cell above the floor on effect cases, empty map without: {frac(rows, 'where_ok')}")
     L.append(f"withheld RMS within 25% of the noise floor: {frac(rows, 'shrink_ok')} "
              f"(worst {max(r['ratio'] for r in rows):.2f}x)")
     return "\n".join(L)
 
 
 def passed(rows):
-    return all(r["attributed"] and r["shrink_ok"] for r in rows)
+    return all(r["attributed"] and r["shrink_ok"] and r["where_ok"] for r in rows)
 
 
 def main(argv=None):

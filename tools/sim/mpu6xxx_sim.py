@@ -43,6 +43,8 @@ Usage::
 """
 
 import math
+import sys
+from array import array
 
 # part: (family, WHO_AM_I, accel offset base, stride, FIFO bytes, (LSB/degC, degC at 0),
 #        PWR_MGMT_1 reset value, temperature always in FIFO)
@@ -114,6 +116,7 @@ class _Rng:
 
 
 _TABLES = {}
+_CPYTHON = sys.implementation.name == "cpython"
 
 
 def _normal_table(seed):
@@ -122,13 +125,24 @@ def _normal_table(seed):
     tab = _TABLES.get(seed)
     if tab is None:
         rng = _Rng(seed + 7919)
-        tab = []
-        while len(tab) < _NOISE_N:
+        if _CPYTHON:
+            tab = [0.0] * _NOISE_N
+        elif _TABLES:
+            # MicroPython: one table, refilled in place (a microcontroller's heap holds one)
+            tab = _TABLES.popitem()[1]
+        else:
+            # an array of the port's own float width holds the same values as a list there, in a
+            # quarter of the heap (4096 boxed floats alone would not fit a 140 KB heap)
+            single = 1.0 + 1e-9 == 1.0
+            tab = array("f" if single else "d", bytearray((4 if single else 8) * _NOISE_N))
+        i = 0
+        while i < _NOISE_N:
             u1 = (rng.next() + 1) / 2147483649.0
             u2 = rng.next() / 2147483648.0
             r = math.sqrt(-2.0 * math.log(u1))
-            tab.append(r * math.cos(2.0 * math.pi * u2))
-            tab.append(r * math.sin(2.0 * math.pi * u2))
+            tab[i] = r * math.cos(2.0 * math.pi * u2)
+            tab[i + 1] = r * math.sin(2.0 * math.pi * u2)
+            i += 2
         _TABLES[seed] = tab
     return tab
 

@@ -15,7 +15,8 @@ from .where import localise
 
 RATIO_WARN = 1.5        # final RMS over the floor above which the residual is called unexplained
 COVERED_MIN = 0.95      # fraction of withheld rows inside the training coverage
-QUANT_WARN = 0.5        # output step over the noise floor above which quantisation is reported
+QUANT_WARN = 1.0        # output step over the noise floor above which quantisation is reported
+MAX_ROWS = 100_000      # longer logs are diagnosed on every k-th row (rows.stride)
 TOB_T = 5.0             # t (effective samples) of a constant shift on a separate power-on
 TOB_GAIN = 0.2          # ... and removing it must cut the withheld RMS by 20 %
 
@@ -32,7 +33,20 @@ def _warn(code, message, **kw):
     return dict({"code": code, "message": message}, **kw)
 
 
+def _thin(log):
+    """Every k-th row of a log longer than MAX_ROWS (k = ceil(n / MAX_ROWS)), and k. A
+    temperature log's effects live over minutes; 100,000 rows resolve them, and the fit's cost
+    and memory stay bounded (1 M + 1 M rows in well under a minute on one core)."""
+    if log is None or len(log) <= MAX_ROWS:
+        return log, 1
+    k = int(np.ceil(len(log) / MAX_ROWS))
+    return log.subset(slice(None, None, k)), k
+
+
 def diagnose(train, withheld=None, model=None):
+    n_train, n_held = len(train), len(withheld) if withheld is not None else 0
+    train, k_train = _thin(train)
+    withheld, k_held = _thin(withheld)
     prob = Problem(train, withheld, model)
     ctx = prob.ctx
     warnings = []
@@ -57,6 +71,7 @@ def diagnose(train, withheld=None, model=None):
     g = Greedy(prob, sigma_t)
     g.run()
     g.refine()
+    pruned = g.prune()
 
     # 3. Plausibility: implausible fits leave the model (and the verdict).
     implausible = []
@@ -86,6 +101,7 @@ def diagnose(train, withheld=None, model=None):
     cov = {"train": coverage.describe(train)}
     extras = {"prob": prob, "base_train": base_t, "greedy": g}
     tob_shift = {}
+    not_confirmed = []
     if withheld is not None:
         pw = prob.withheld
         cov["withheld"] = coverage.describe(withheld)
@@ -110,6 +126,28 @@ def diagnose(train, withheld=None, model=None):
             rows = pw.mask.copy()   # nothing covered: report on all rows, flagged below
         source = f"withheld log {withheld.name}" + (
             f" ({int(rows.sum())} covered rows)" if outside else "")
+        # The withheld log may veto, never add: an effect that makes the covered withheld
+        # residual worse on its axis is taken out (reported in not_confirmed). What is left
+        # is scored once.
+        if not outside:
+            for a in range(3):
+                while g.state[a]:
+                    full = _rms(prob.full_residual(pw, a, g.state[a])[rows])
+                    worst = None
+                    for i, (n, _) in enumerate(g.state[a]):
+                        without = g.state[a][:i] + g.state[a][i + 1:]
+                        w = _rms(prob.full_residual(pw, a, without)[rows])
+                        if w < full and (worst is None or w < worst[1]):
+                            worst = (i, w)
+                    if worst is None:
+                        break
+                    n = g.state[a][worst[0]][0]
+                    not_confirmed.append({"effect": n, "axis": AXES[a],
+                                          "withheld_rms_with": full, "withheld_rms_without": worst[1]})
+                    del g.state[a][worst[0]]
+                g.cur[a] = prob.evaluate(a, g.state[a], withheld=False)
+            verdict[:] = [v for v in verdict if any(n == v for a in range(3) for n, _ in g.state[a])]
+            order[:] = [v for v in order if v in verdict]
         score = {a: prob.full_residual(pw, a, g.state[a]) for a in range(3)}
         sim_only = [_rms(base_w[rows, a]) for a in range(3)]
         # Turn-on bias across logs: a withheld log from its own power-on(s) may sit at a
@@ -125,14 +163,24 @@ def diagnose(train, withheld=None, model=None):
                 r = score[a][rows]
                 c = np.zeros_like(r)
                 shifts = {}
+                steady = True
+                tau = noise.autocorr_time(r - np.mean(r))
                 for run in np.unique(wrun):
                     sel = np.flatnonzero(wrun == run)
                     k = max(50, len(sel) // 20)
-                    c[sel] = shifts[int(run)] = float(np.mean(r[sel[:k]]))
-                tau = noise.autocorr_time(r - c - np.mean(r - c))
+                    first, last = float(np.mean(r[sel[:k]])), float(np.mean(r[sel[-k:]]))
+                    c[sel] = shifts[int(run)] = first
+                    # A power-on's shift is constant: the end of the run must agree with its
+                    # start (a random walk or a drift moves between them).
+                    tol = max(0.25 * abs(first), 4 * sigma[a] / np.sqrt(k))
+                    steady &= abs(last - first) < tol
                 se = np.std(r - c) * np.sqrt(tau / len(r))
                 t = float(np.sqrt(np.mean(c * c))) / max(se, 1e-300)
-                if t > TOB_T and _rms(r - c) < (1 - TOB_GAIN) * _rms(r):
+                # ... and what is left is noise-like: a wander that happened to sit at one
+                # level leaves a residual that is still correlated.
+                rest_ok = (_rms(r - c) < RATIO_WARN * sigma[a]
+                           or noise.classify(r - c - np.mean(r - c), sigma[a])[0] == "white")
+                if steady and rest_ok and t > TOB_T and _rms(r - c) < (1 - TOB_GAIN) * _rms(r):
                     corr[a] = c
                     tob_shift[a] = shifts
             if tob_shift and "turn_on_bias" not in verdict:
@@ -207,6 +255,8 @@ def diagnose(train, withheld=None, model=None):
         "warnings": warnings,
         "coverage": cov,
         "implausible": implausible,
+        "pruned": [{"effect": n, "axis": AXES[a], "z": z} for n, a, z in pruned],
+        "not_confirmed": not_confirmed,
         "not_identifiable": not_ident,
         "told_apart": apart,
         "untried": [{"name": n, "reason": r} for n, r in g.untried.items()],
@@ -215,9 +265,11 @@ def diagnose(train, withheld=None, model=None):
         "selected_on": f"held-out segments of the training log ({prob.nfold} contiguous blocks)",
         "unit": train.unit,
         "sim": "given model" if model is not None else "fitted on the training log",
-        "rows": {"train": len(train), "train_outliers": int((~prob.train.mask).sum()),
-                 "withheld": len(withheld) if withheld is not None else 0,
-                 "withheld_outliers": int((~prob.withheld.mask).sum()) if withheld is not None else 0},
+        "rows": {"train": n_train, "train_outliers": int((~prob.train.mask).sum()),
+                 "withheld": n_held,
+                 "withheld_outliers": int((~prob.withheld.mask).sum()) if withheld is not None else 0,
+                 "stride": {"train": k_train, "withheld": k_held},
+                 "used": {"train": len(train), "withheld": len(withheld) if withheld is not None else 0}},
     }
     model_json = augmented.build(prob, g.state, tob_shift)
     held = prob.withheld if withheld is not None else prob.train

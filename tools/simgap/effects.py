@@ -243,6 +243,12 @@ class Drift(Effect):
     name = "drift"
 
     def shapes(self, ctx):
+        if ctx.runs < 2:
+            # One power-on: a slow trend over the whole log is what a bias random walk looks
+            # like too, so only a settling that is over within the first quarter of the run
+            # is a candidate (a second power-on is what tells aging from a wander).
+            taus = np.geomspace(ctx.run_span / 100, ctx.run_span / 12, 5)
+            return [(f, float(tau)) for tau in taus for f in ("exp", "hyperbolic")]
         taus = np.geomspace(ctx.run_span / 100, ctx.run_span / 1.5, 6)
         return [(f, float(tau)) for tau in taus for f in ("exp", "exp+linear", "hyperbolic")]
 

@@ -24,6 +24,7 @@ class Context:
             self.run_span = max(float(np.max(train.t - train.t[on])), 10 * self.dt)
         else:
             self.run_span = self.span
+        self.runs = int(len(np.unique(train.run))) if train.run is not None else 1
         self.supply_mean = self.supply_std = None
         if train.supply is not None:
             self.supply_mean = float(np.mean(train.supply))

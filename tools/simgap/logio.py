@@ -5,6 +5,7 @@ The reader is strict on purpose: a silently mis-parsed column would show up late
 """
 import csv
 import io
+import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -53,6 +54,39 @@ class Log:
                    pick(self.run))
 
 
+def _fast_table(lines, lineno):
+    """([header row], (N, ncols) float array) when the body is plain numbers that the strict
+    parser would accept unchanged, else None (then the strict parser runs and names the first
+    bad cell). A million-row log parses in about a second this way instead of tens."""
+    body = lines[lineno + 1:]
+    while body and not body[-1].strip():
+        body.pop()
+    if len(body) < 10 or any('"' in ln for ln in (lines[lineno], body[0], body[-1])):
+        return None
+    header = next(csv.reader([lines[lineno]]))
+    ncols = len(header)
+    text = "\n".join(body)
+    if '"' in text or text.count(",") != (ncols - 1) * len(body) or "\n\n" in text:
+        return None
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            vals = np.fromstring(text.replace("\n", ","), sep=",")
+    except ValueError:
+        return None
+    if vals.size != ncols * len(body):
+        return None
+    arr = vals.reshape(len(body), ncols)
+    if not np.all(np.isfinite(arr)) or np.any(np.abs(arr) >= LIMIT):
+        return None
+    # Each line must hold exactly ncols fields (the comma count above is only a total).
+    if any(ln.count(",") != ncols - 1 for ln in body[:: max(1, len(body) // 1000)]):
+        return None
+    if sum(ln.count(",") != ncols - 1 for ln in body):
+        return None
+    return [header], arr
+
+
 def read_log(path, text=None):
     """Read a log file (or `text` if given, `path` then only names it in errors)."""
     name = str(path)
@@ -77,7 +111,8 @@ def read_log(path, text=None):
     if lineno >= len(lines):
         raise LogError(f"{name}: no header line (expected columns {', '.join(REQUIRED)})")
     header_line = lineno + 1
-    rows = list(csv.reader(io.StringIO("\n".join(lines[lineno:]))))
+    fast = _fast_table(lines, lineno)
+    rows = fast[0] if fast else list(csv.reader(io.StringIO("\n".join(lines[lineno:]))))
     header = [h.strip() for h in rows[0]]
     missing = [c for c in REQUIRED if c not in header]
     if missing:
@@ -89,7 +124,11 @@ def read_log(path, text=None):
     wanted = [c for c in REQUIRED + OPTIONAL if c in header]
     col = {c: header.index(c) for c in wanted}
     data = {c: [] for c in wanted}
-    for i, row in enumerate(rows[1:]):
+    if fast:
+        # Every cell parsed as a finite number within LIMIT and every line has the header's
+        # field count: the strict loop below would accept it all, so skip it.
+        data = {c: fast[1][:, col[c]] for c in wanted}
+    for i, row in enumerate(rows[1:] if not fast else ()):
         ln = header_line + 1 + i
         if not row or (len(row) == 1 and not row[0].strip()):
             continue  # a trailing blank line is not an error

@@ -1,14 +1,23 @@
-"""Human-readable summary and the PNG (residual vs temperature by branch, localisation map,
-before/after waterfall)."""
+"""Human-readable summary and the PNG: residual against temperature and against time for the
+training and the withheld log, the where-map by excess over the noise floor, and the
+before/after waterfall. One colour per axis everywhere (AXIS_COLOURS)."""
 import numpy as np
 
 from .logio import AXES
+
+AXIS_COLOURS = {"x": "#1f77b4", "y": "#2ca02c", "z": "#d62728"}
+WITHHELD_COLOUR = "#444444"
+
+
+def _fmt_ratio(v):
+    return "n/a" if v is None else f"{v:.2f}x"
 
 
 def text(res):
     u = res["unit"]
     L = []
-    L.append(f"sim: {res['sim']}; scored on {res['withheld_source']}")
+    L.append(f"sim: {res['sim']}; effects chosen on {res.get('selected_on', 'held-out data')}; "
+             f"scored on {res['withheld_source']}")
     rows = res["rows"]
     L.append(f"rows: train {rows['train']} ({rows['train_outliers']} outliers dropped)"
              + (f", withheld {rows['withheld']} ({rows['withheld_outliers']} outliers dropped)"
@@ -16,91 +25,189 @@ def text(res):
     nf = res["noise_floor"]
     L.append("noise floor: " + ", ".join(f"{a} {nf[a]:.4g}" for a in nf) + f" {u}")
     so = res["sim_only"]["withheld_rms"]
-    L.append("withheld RMS, sim only: " + ", ".join(f"{a} {so[a]:.4g}" for a in so) + f" {u}")
+    L.append("scored RMS, sim only: " + ", ".join(f"{a} {so[a]:.4g}" for a in so) + f" {u}")
+    ratio = res["final"]["ratio_to_noise"]
+    high = [(a, r) for a, r in ratio.items() if r is not None and r > 1.5]
     if res["verdict"]:
         L.append("verdict (strongest first): " + ", ".join(res["verdict"]))
+    elif high:
+        L.append("verdict: none - no effect in the catalogue explains what is left: "
+                 + ", ".join(f"{a} at {r:.2f}x the noise floor" for a, r in high)
+                 + " (see warnings)")
     else:
-        L.append("verdict: none - the sim explains the data down to the noise floor "
-                 "as far as this data can tell")
+        L.append("verdict: none - the sim explains the data to within 1.5x the noise floor on "
+                 "every axis, as far as this data can tell")
     for e in sorted(res["effects"], key=lambda e: (not e["significant"], e["rank"] or 0, -e["shrink"])):
         mark = "*" if e["significant"] else " "
         ax = ",".join(e["axes"])
         shown = e["axes"] if e["significant"] else e["withheld_rms_before"]
         pa = "; ".join(f"{a} {e['withheld_rms_before'][a]:.4g}->{e['withheld_rms_after'][a]:.4g}"
-                       for a in shown)
-        L.append(f" {mark} {e['name']:<24} shrink {100 * e['shrink']:6.1f}% on {ax:<6} ({pa})")
+                       for a in shown if a in e["withheld_rms_before"])
+        on = e.get("scored_on", "withheld")
+        L.append(f" {mark} {e['name']:<24} shrink {100 * e['shrink']:6.1f}% on {ax:<6} ({pa}) [{on}]")
     fin = res["final"]
-    L.append("final withheld RMS: " + ", ".join(
-        f"{a} {fin['withheld_rms'][a]:.4g} ({fin['ratio_to_noise'][a]:.2f}x floor)"
+    L.append("final scored RMS: " + ", ".join(
+        f"{a} {fin['withheld_rms'][a]:.4g} ({_fmt_ratio(fin['ratio_to_noise'][a])} floor)"
         for a in fin["withheld_rms"]) + f" {u}")
+    for c in res.get("not_confirmed", []):
+        L.append(f"not confirmed: {c['effect']} on {c['axis']} was chosen on the training log but makes "
+                 f"the withheld log worse ({c['withheld_rms_without']:.4g} -> {c['withheld_rms_with']:.4g} "
+                 f"{u}); left out")
+    for w in res.get("warnings", []):
+        L.append(f"warning [{w['code']}]: {w['message']}")
     for c in res["not_identifiable"]:
         L.append(f"not identifiable: {' vs '.join(c['effects'])} - needs {c['needs']}")
     for c in res["untried"]:
         L.append(f"not tried: {c['name']} ({c['reason']})")
     if res["where"]:
-        L.append("where (largest share of the training residual above the noise floor):")
+        L.append("where (share of the training residual energy above the noise floor, all axes):")
         for c in res["where"][:6]:
             L.append(f"   {c['axis']} {c['dimension']:<11} {str(c['from']):>8} .. {str(c['to']):<8}"
                      f" share {100 * c['share']:5.1f}%  mean {c['mean']:+.4g} {u}")
     return "\n".join(L)
 
 
+def band_labels(edges):
+    """Labels 'lo..hi' for consecutive edges with as many decimals as it takes for every
+    label to differ (a plateau's bands are a few hundredths of a degree wide)."""
+    for dec in range(0, 6):
+        labels = [f"{lo:.{dec}f}..{hi:.{dec}f}" for lo, hi in zip(edges[:-1], edges[1:])]
+        if len(set(labels)) == len(labels):
+            return labels
+    return labels
+
+
+def _cell_label(c):
+    if c["dimension"] in ("branch", "run"):
+        return f"{c['axis']} {c['dimension']} {c['from']}"
+    lo, hi = float(c["from"]), float(c["to"])
+    span = abs(hi - lo)
+    dec = 0 if span >= 10 else (1 if span >= 1 else (2 if span >= 0.1 else 3))
+    return f"{c['axis']} {c['dimension']} {lo:.{dec}f}..{hi:.{dec}f}"
+
+
 def plot(res, extras, path):
+    """Write the PNG; returns what was drawn (panel titles, colours), for the tests."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from . import prep
-
     prob = extras["prob"]
+    g = extras["greedy"]
     log = prob.train.log
-    r = extras["base_train"]
     m = prob.train.mask
-    br = prep.branch(prep.temp_rate(log))
-    fig, axs = plt.subplots(2, 3, figsize=(15, 8))
-    colours = {"heating": "tab:red", "soak": "tab:grey", "cooling": "tab:blue"}
+    u = res["unit"]
+    base_t = extras["base_train"]
+    final_t = np.column_stack([prob.full_residual(prob.train, a, g.state[a]) for a in range(3)])
+    have_w = "base_withheld" in extras
+    if have_w:
+        wl = prob.withheld.log
+        wm = prob.withheld.mask
+        base_w = extras["base_withheld"]
+        final_w = np.column_stack([extras["score_withheld"][a] - _corr_full(extras, a, len(wl))
+                                   for a in range(3)])
+    fig = plt.figure(figsize=(17, 13), layout="constrained")
+    gs = fig.add_gridspec(3, 3)
+    drawn = {"titles": [], "axis_colours": dict(AXIS_COLOURS), "withheld_drawn": have_w}
+    # Row 1: residual vs temperature, one panel per axis, both logs.
     for a in range(3):
-        ax = axs[0, a]
-        for b, c in colours.items():
-            s = m & (br == b)
-            ax.plot(log.temp[s], r[s, a], ".", ms=1.5, color=c, label=b)
-        ax.set_title(f"{AXES[a]}: sim residual vs temperature (training)")
+        ax = fig.add_subplot(gs[0, a])
+        c = AXIS_COLOURS[AXES[a]]
+        ax.plot(log.temp[m], base_t[m, a], ".", ms=1.5, color=c, alpha=0.35,
+                label="training: sim residual")
+        ax.plot(log.temp[m], final_t[m, a], ".", ms=1.2, color=c, alpha=0.9,
+                label="training: final model")
+        if have_w:
+            ax.plot(wl.temp[wm], final_w[wm, a], "x", ms=2, color=WITHHELD_COLOUR, alpha=0.6,
+                    label="withheld: final model")
+        nf = res["noise_floor"][AXES[a]]
+        ax.axhspan(-nf, nf, color="0.85", zorder=0, label="+-noise floor")
+        t = f"{AXES[a]}: residual vs temperature"
+        ax.set_title(t)
+        drawn["titles"].append(t)
         ax.set_xlabel("temperature reading (degC)")
-        ax.set_ylabel(f"residual ({res['unit']})")
+        ax.set_ylabel(f"residual ({u})")
         if a == 0:
-            ax.legend(markerscale=6, loc="best")
-    # Localisation map: share per axis x temperature band.
-    ax = axs[1, 0]
-    cells = [c for c in res["where"] if c["dimension"] == "temperature"]
-    bands = sorted({(c["from"], c["to"]) for c in cells})
-    grid = np.zeros((3, max(1, len(bands))))
-    for c in cells:
-        grid[AXES.index(c["axis"]), bands.index((c["from"], c["to"]))] = c["share"]
-    im = ax.imshow(grid, aspect="auto", cmap="magma")
-    ax.set_yticks(range(3), AXES)
-    ax.set_xticks(range(len(bands)), [f"{lo:.0f}" for lo, _ in bands], fontsize=7)
-    ax.set_xlabel("temperature band from (degC)")
-    ax.set_title("share of excess residual by axis x band")
-    fig.colorbar(im, ax=ax)
-    ax = axs[1, 1]
-    dims = ["branch", "time", "input", "run"]
-    for i, d in enumerate(dims):
-        cs = [c for c in res["where"] if c["dimension"] == d]
-        for c in cs:
-            ax.bar(i + 0.25 * (AXES.index(c["axis"]) - 1), c["share"], width=0.22,
-                   color=["tab:orange", "tab:green", "tab:purple"][AXES.index(c["axis"])])
-    ax.set_xticks(range(len(dims)), dims)
-    ax.set_title("share by other dimensions (bars: x, y, z cells)")
-    ax = axs[1, 2]
+            ax.legend(markerscale=5, fontsize=7, loc="best")
+    # Row 2: residual vs time, training then withheld.
+    for a in range(3):
+        ax = fig.add_subplot(gs[1, a])
+        c = AXIS_COLOURS[AXES[a]]
+        tt = log.t - log.t[0]
+        ax.plot(tt[m], base_t[m, a], ".", ms=1.2, color=c, alpha=0.3, label="sim residual")
+        ax.plot(tt[m], final_t[m, a], ".", ms=1.2, color=c, label="final model")
+        if have_w:
+            same_run = "power_on_s" in wl.meta and "power_on_s" in log.meta
+            # Cut from the same run (same clock): at its own time; else after the training log.
+            off = float(tt[-1]) * 1.02
+            tw = wl.t - log.t[0] if same_run else wl.t - wl.t[0] + off
+            ax.plot(tw[wm], base_w[wm, a], ".", ms=1.2, color=WITHHELD_COLOUR, alpha=0.3)
+            ax.plot(tw[wm], final_w[wm, a], ".", ms=1.2, color=WITHHELD_COLOUR,
+                    label="withheld (same clock)" if same_run else "withheld (after the training log)")
+            if not same_run:
+                ax.axvline(off, color="k", lw=0.8, ls="--")
+        unit_t = "rows" if "row index" in log.meta.get("time", "") else "s"
+        t = f"{AXES[a]}: residual vs time"
+        ax.set_title(t)
+        drawn["titles"].append(t)
+        ax.set_xlabel(f"time from the start of the log ({unit_t})")
+        ax.set_ylabel(f"residual ({u})")
+        if a == 0:
+            ax.legend(markerscale=5, fontsize=7, loc="best")
+    # Row 3: where-map by excess, waterfall, warnings.
+    ax = fig.add_subplot(gs[2, 0])
+    cells = res["where"][:12]
+    if cells:
+        labels = [_cell_label(c) for c in cells][::-1]
+        vals = [100 * c["share"] for c in cells][::-1]
+        cols = [AXIS_COLOURS[c["axis"]] for c in cells][::-1]
+        ax.barh(range(len(cells)), vals, color=cols)
+        ax.set_yticks(range(len(cells)), labels, fontsize=7)
+        ax.set_xlabel("share of the residual energy above the noise floor (%)")
+    else:
+        ax.text(0.5, 0.5, "no cell above the noise floor", ha="center", va="center",
+                transform=ax.transAxes)
+        ax.set_yticks([])
+    t = "where: cells by excess over the floor"
+    ax.set_title(t)
+    drawn["titles"].append(t)
+    drawn["where_labels"] = [_cell_label(c) for c in cells]
+    ax = fig.add_subplot(gs[2, 1])
     wf = res["waterfall"]
     labels = ["sim"] + [w["added"] for w in wf[1:]]
     for a in range(3):
-        ax.plot(range(len(wf)), [w["withheld_rms"][AXES[a]] for w in wf], "o-", label=AXES[a])
-        ax.axhline(res["noise_floor"][AXES[a]], ls=":", color=f"C{a}")
-    ax.set_xticks(range(len(wf)), labels, rotation=30, ha="right", fontsize=8)
-    ax.set_ylabel(f"withheld RMS ({res['unit']})")
-    ax.set_title("withheld residual as effects are added (dotted: noise floor)")
-    ax.legend()
-    fig.tight_layout()
-    fig.savefig(path, dpi=90)
+        c = AXIS_COLOURS[AXES[a]]
+        ax.plot(range(len(wf)), [w["withheld_rms"][AXES[a]] for w in wf], "o-", color=c,
+                label=AXES[a])
+        ax.axhline(res["noise_floor"][AXES[a]], ls=":", color=c)
+    ax.set_xticks(range(len(wf)), labels, rotation=20, ha="right", fontsize=8)
+    ax.set_ylabel(f"scored RMS ({u})")
+    ax.set_yscale("log")
+    t = "before/after: scored RMS as effects are added (dotted: floors)"
+    ax.set_title(t, fontsize=10)
+    drawn["titles"].append(t)
+    ax.legend(fontsize=8)
+    ax = fig.add_subplot(gs[2, 2])
+    ax.axis("off")
+    lines = ["verdict: " + (", ".join(res["verdict"]) or "none")]
+    lines += [f"final/floor {a}: {_fmt_ratio(r)}" for a, r in res["final"]["ratio_to_noise"].items()]
+    for w in res.get("warnings", [])[:8]:
+        lines.append(f"[{w['code']}] {w.get('axis', '')} {w.get('effect', '')}".rstrip())
+    ax.text(0.0, 1.0, "\n".join(lines), va="top", ha="left", family="monospace", fontsize=9,
+            transform=ax.transAxes, wrap=True)
+    t = "summary"
+    ax.set_title(t)
+    drawn["titles"].append(t)
+    fig.savefig(path, dpi=80, format="png")
     plt.close(fig)
+    return drawn
+
+
+def _corr_full(extras, a, n):
+    """The start-up constant per withheld run, spread over all rows (0 where none)."""
+    corr = extras.get("tob_corr", {})
+    if a not in corr:
+        return np.zeros(n)
+    full = np.zeros(n)
+    full[extras["withheld_rows"]] = corr[a]
+    return full

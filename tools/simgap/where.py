@@ -1,5 +1,5 @@
 """Where the sim departs from the log: the training residual split into cells along one
-dimension at a time, each cell's share of the axis's excess energy over the noise floor."""
+dimension at a time, each cell's share of the excess energy over the noise floor."""
 import numpy as np
 
 from . import prep
@@ -16,7 +16,7 @@ def _cells(p, axis, ctx):
     for i in range(NBANDS):
         lo, hi = edges[i], edges[i + 1]
         m = (T >= lo) & ((T < hi) if i < NBANDS - 1 else (T <= hi))
-        yield "temperature", round(float(lo), 2), round(float(hi), 2), m
+        yield "temperature", round(float(lo), 4), round(float(hi), 4), m
     br = prep.branch(prep.temp_rate(log))
     for b in ("heating", "soak", "cooling"):
         yield "branch", b, b, br == b
@@ -40,18 +40,29 @@ def _cells(p, axis, ctx):
 
 
 def localise(p, resid, sigma, ctx, top=40):
-    """resid: (N, 3) sim residual on prepared log p; sigma: noise floor per axis."""
-    out = []
+    """resid: (N, 3) sim residual on prepared log p; sigma: noise floor per axis. A cell's
+    share is its residual energy above the noise floor (sum r^2 - n sigma^2) over the excess
+    of all three axes together, so an axis the sim fits to the floor contributes nothing and
+    the top cell lies where the sim misfits most, whatever the data mass elsewhere."""
+    clipped, totals = {}, {}
+    m0 = p.mask
     for a in range(3):
         r = resid[:, a]
-        m0 = p.mask
         # Clip at 6 sigma of the residual's own robust spread so one bad stretch cannot own
         # the whole map.
         med = np.median(r[m0])
         lim = 6 * max(1.4826 * np.median(np.abs(r[m0] - med)), sigma[a], 1e-300)
-        rc = np.clip(r, med - lim, med + lim)
-        excess_total = float(np.sum(rc[m0] ** 2) - m0.sum() * sigma[a] ** 2)
-        if excess_total <= 0:
+        clipped[a] = np.clip(r, med - lim, med + lim)
+        totals[a] = float(np.sum(clipped[a][m0] ** 2) - m0.sum() * sigma[a] ** 2)
+    # Only an axis whose excess is beyond what noise gives takes part.
+    n0 = int(m0.sum())
+    overall = sum(v for a, v in totals.items() if v > 9 * sigma[a] ** 2 * np.sqrt(2 * n0))
+    out = []
+    if overall <= 0:
+        return out
+    for a in range(3):
+        rc = clipped[a]
+        if totals[a] <= 9 * sigma[a] ** 2 * np.sqrt(2 * n0):
             continue
         for dim, lo, hi, m in _cells(p, a, ctx):
             m = m & m0
@@ -64,11 +75,12 @@ def localise(p, resid, sigma, ctx, top=40):
             # for samples not being independent.
             if e < 3 * sigma[a] ** 2 * np.sqrt(2 * n) * 3:
                 continue
-            share = min(1.0, e / excess_total)
+            share = min(1.0, e / overall)
             mean = float(np.mean(rc[m]))
             out.append({"axis": AXES[a], "dimension": dim, "from": lo, "to": hi,
                         "share": round(share, 4), "n": n, "mean": mean,
                         "rms": float(np.sqrt(np.mean(rc[m] ** 2))),
+                        "excess": e,
                         "z": float(mean / (sigma[a] / np.sqrt(n))) if sigma[a] > 0 else 0.0})
     out.sort(key=lambda c: -c["share"])
     return out[:top]

@@ -754,11 +754,23 @@ function pump() {
   if (pumping) return;
   pumping = true;
   try {
+    let pasted = 0;
     while (ready) {
       const c = inRing.readByte();
       if (c < 0) break;
-      if (mode === "raw") rawChar(c);
-      else vmChar(c);
+      if (mode === "raw") {
+        if (pasting) pasted++;
+        rawChar(c);
+      } else vmChar(c);
+    }
+    // Raw paste: grant another window as soon as a piece of code has arrived, not only when a
+    // window is used up (the protocol allows a \x01 at any time).  mpremote sends a command and
+    // its closing Ctrl-D as two small writes; over TCP the second waits (Nagle) for the
+    // acknowledgement of the first, which the host delays up to 40 ms unless data goes back.
+    // This \x01 is that data: about 15x faster `cp` of many small chunks over socket://.
+    if (pasting && pasted) {
+      windowRemain += PASTE_WINDOW;
+      emitRaw("\x01");
     }
   } catch (e) {
     log(`VM crashed: ${e.stack || e}`);

@@ -15,9 +15,10 @@
 #     vboard_sensors.world.bump(after_ms=50)    # knock it for a second
 #     vboard_sensors.world.heat([(0, 20), (30, 50)])  # warm it from 20 to 50 degC in 30 s
 #
-# Time: temperature and motion follow board.clock_ms().  The MPU-6500 model's
-# sample clock runs on its own bus traffic (9 clocks a byte at 400 kHz), so a
-# capture is never starved or overflowed by the speed of the host.
+# Time: temperature and motion follow board.clock_ms(), the board's own simulated
+# time (vboard.py, "Time": bus transfers and sleeps move it, the host's clock does
+# not), and the MPU-6500 model's sample clock runs on its own bus traffic (9 clocks
+# a byte at 400 kHz): a capture sees the same world on an idle or a loaded host.
 
 import math
 
