@@ -171,6 +171,18 @@ for ci in range(len(cfgs)):
         allocprobe.report("list_%d_%d" % (ci, mode), c.apply_be16_n, (buf, out, N))
         allocprobe.report("arr_%d_%d" % (ci, mode), c.apply_be16_n, (buf, arr, N))
 fp.use_native(None)
+# update() itself, heap-locked: constant scales (Horner only) and scales varying with t
+cc = fp.Compensator([[1.0, 0.01, 1e-6]] * 3, [[131.0]] * 3, (-4000, 9000), out_scale=1000.0)
+cv = fp.Compensator(OFFS_, SCS_, (-4000, 9000), out_scale=1000.0)
+st = [0]
+def upd_const():
+    st[0] = (st[0] + 37) & 0x1FFF
+    cc.update(st[0] - 4000)
+def upd_vary():
+    st[0] = (st[0] + 37) & 0x1FFF
+    cv.update(st[0] - 4000)
+allocprobe.report("update_const", upd_const)
+allocprobe.report("update_vary", upd_vary)
 """
 
 

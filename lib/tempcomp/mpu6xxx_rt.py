@@ -115,8 +115,9 @@ def resume(imu, v, model=None):
               and v[i] <= v[i + 1] and v[i + _HALF] == 1 << (s - 1))
         for j in range(3):
             ok = ok and 0 <= v[i + _FD + j] <= 3
-        for j in range(12):
-            ok = ok and -(1 << 29) <= v[i + _FQ + j] <= 1 << 29
+        for j in range(12):  # Horner's constant <= 2**29, the others <= 2**28
+            lim = 1 << 29 if j % 4 == 0 else 1 << 28
+            ok = ok and -lim <= v[i + _FQ + j] <= lim
         i += _PER
     if not ok:
         raise ValueError("mpu_tcc: not a compiled offset(T) record")

@@ -160,6 +160,31 @@ imu.read_compensated(buf)
 step("+ compensate(model), read_compensated")
 """
 
+# The same for the boot that resumes record mpu_tcc (tempcomp.mpu6xxx_rt): no fixed-point set-up.
+BOOT_STEPS_TCC = """
+import gc, sys
+import ram_board
+gc.collect()
+a0 = gc.mem_alloc()
+def step(n):
+    gc.collect()
+    print("STEP", n, gc.mem_alloc() - a0)
+import tempcomp.store
+step("import tempcomp.store")
+import tempcomp.mpu6xxx
+step("+ import tempcomp.mpu6xxx (bus, parts table)")
+st = tempcomp.store.Store("/ram/{store}")
+imu = tempcomp.mpu6xxx.MPU6xxx(ram_board.i2c())
+imu.restore(st)
+step("+ read the store, MPU6xxx(i2c), restore(store)")
+import tempcomp.mpu6xxx_rt
+step("+ import tempcomp.mpu6xxx_rt")
+imu.compensate(st.load("mpu_tcc"), st.load("mpu_tc"))
+buf = [0] * 7
+imu.read_compensated(buf)
+step("+ compensate(mpu_tcc, mpu_tc), read_compensated")
+"""
+
 SEED = 7
 
 
@@ -286,11 +311,12 @@ def bench(report, imports=True, frozen=True):
             mp = measure_import(it, staged[1], mod)
             report("AN385 heap after `import %s`: .py / .mpy" % mod, "%s / %s" % (_kb(py), _kb(mp)), "")
         _budgets(report, it, staged[1], ".mpy")
-        out = _run(it, BOOT_STEPS.format(store=STORE_NAME), staged[1])
-        for line in out.splitlines():
-            if line.startswith("STEP "):
-                name, v = line[5:].rsplit(" ", 1)
-                report("AN385 boot path from .mpy, cumulative: %s" % name, _kb(int(v)), "")
+        for how, steps in (("", BOOT_STEPS), (" (mpu_tcc)", BOOT_STEPS_TCC)):
+            out = _run(it, steps.format(store=STORE_NAME), staged[1])
+            for line in out.splitlines():
+                if line.startswith("STEP "):
+                    name, v = line[5:].rsplit(" ", 1)
+                    report("AN385 boot path%s from .mpy, cumulative: %s" % (how, name), _kb(int(v)), "")
     finally:
         it.close()
     if frozen:

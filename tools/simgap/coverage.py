@@ -71,3 +71,21 @@ def base_identified(train):
             why.append("one input level: sensitivity not identified (folded into the offset)")
         out[a] = (keep, why)
     return out
+
+
+def differences(tr, wh):
+    """What the withheld log has that the training log lacks (descriptions from describe)."""
+    out = []
+    for b in ("heating", "cooling"):
+        if wh[f"{b}_rows"] > 0 and tr[f"{b}_rows"] == 0:
+            out.append(f"the withheld log has {b} ramps, the training log none")
+    if wh["soak_rows"] > 0 and tr["soak_rows"] == 0:
+        out.append("the withheld log has soaks, the training log none")
+    for a in AXES:
+        lo, hi = tr["input_range"][a]
+        wlo, whi = wh["input_range"][a]
+        if wlo < lo or whi > hi:
+            out.append(f"{a} input {wlo:g}..{whi:g} in the withheld log, {lo:g}..{hi:g} in training")
+    if (wh["orientations"] or 0) > (tr["orientations"] or 0):
+        out.append(f"{wh['orientations']} orientations in the withheld log, {tr['orientations']} in training")
+    return out

@@ -108,6 +108,7 @@ def diagnose(train, withheld=None, model=None):
         inside = coverage.covered(train, withheld)
         frac = float(np.mean(inside))
         cov["withheld_covered_fraction"] = frac
+        cov["differences"] = coverage.differences(cov["train"], cov["withheld"])
         q_w = prep.output_step(withheld)
         base_w = np.column_stack([prob.full_residual(pw, a, []) for a in range(3)])
         sigma = prep.noise_floor(base_w, withheld, pw.mask, q_w)

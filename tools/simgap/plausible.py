@@ -27,7 +27,8 @@ TABLE = {
         "temp_quantization": ("p2p", 10.0, "error of a coarse temperature reading: slope x step"),
         "turn_on_bias": ("p2p", 10.0, "turn-on to turn-on bias repeatability: < 1 dps typical"),
         "cross_axis": ("relative", 0.05, "cross-axis sensitivity / misalignment: 1-3 %"),
-        "nonlinearity": ("relative", 0.03, "nonlinearity: 0.1-1 % of full scale"),
+        "nonlinearity": ("relative", 0.03, "nonlinearity: 0.1-1 % of full scale (limit 3 % of the "
+                         "largest input logged)"),
         "sensitivity_temperature": ("relative", 0.1, "sensitivity change beyond linear: < a few %"),
     },
     "accel": {
@@ -40,7 +41,8 @@ TABLE = {
         "temp_quantization": ("p2p", 0.15, "error of a coarse temperature reading: slope x step"),
         "turn_on_bias": ("p2p", 0.15, "turn-on to turn-on zero-g repeatability: a few mg"),
         "cross_axis": ("relative", 0.05, "cross-axis sensitivity / misalignment: 1-3 %"),
-        "nonlinearity": ("relative", 0.03, "nonlinearity: 0.1-1 % of full scale"),
+        "nonlinearity": ("relative", 0.03, "nonlinearity: 0.1-1 % of full scale (limit 3 % of the "
+                         "largest input logged)"),
         "sensitivity_temperature": ("relative", 0.1, "sensitivity change beyond linear: < a few %"),
     },
 }
@@ -114,9 +116,18 @@ def check(prob, axis, blocks):
             big = r > 0.2 * max(float(np.max(r)), 1e-300)
             if not np.any(big):
                 continue
-            cc = c - np.median(c[~big]) if np.any(~big) else c
-            size = float(np.percentile(np.abs(cc[big]) * k / r[big], 99.5))
-            unit = "of the reading"
+            if name == "nonlinearity":
+                # Deviation from a straight line in the input: a linear part is sensitivity.
+                X = np.column_stack([np.ones_like(r), ref[:, axis]])
+                cc = c - X @ np.linalg.lstsq(X, c, rcond=None)[0]
+            else:
+                cc = c - np.median(c[~big]) if np.any(~big) else c
+            if name == "nonlinearity":     # datasheets state it as a fraction of full scale
+                size = float(np.percentile(np.abs(cc), 99.5)) * k / float(np.max(r))
+                unit = "of full scale"
+            else:
+                size = float(np.percentile(np.abs(cc[big]) * k / r[big], 99.5))
+                unit = "of the reading"
         if size > limit:     # (False for NaN: an unknown unit is not a finding)
             bad.append((name, size, limit, unit, basis))
     return bad
