@@ -142,3 +142,42 @@ def test_record_that_does_not_fit_is_refused_and_nothing_changes():
     assert imu._ca is None
     with pytest.raises(ValueError, match="call compensate"):
         imu.read_compensated([0] * 7)
+
+
+def test_boot_from_the_const_export_reads_what_the_store_boot_reads(tmp_path, monkeypatch):
+    # docs/ram.md: the store's const() export as the boot's source (no store reader at boot)
+    import importlib
+
+    sim, bus = part(seed=9)
+    imu = MPU6xxx(bus)
+    imu.calibrate(packets=200)
+    pts = []
+    for tc in (15.0, 40.0):
+        sim.temp_c = tc
+        pts.append(imu.bias_point(packets=200))
+    path = str(tmp_path / "cal")
+    st = Store(path)
+    imu.save(st)
+    mi = BiasModel(pts).to_ints()
+    st.save("mpu_tc", mi)
+    st.save("mpu_tcc", compiled(imu, mi))
+    st.export_module(str(tmp_path / "calib_const_rt.py"))
+    monkeypatch.syspath_prepend(str(tmp_path))
+    cal = importlib.import_module("calib_const_rt")
+    outs = []
+    for how in ("store", "const"):
+        s2, bus2 = part(seed=9)
+        s2.temp_c = 33.0
+        b = MPU6xxx(bus2)
+        if how == "store":
+            b.restore(Store(path))
+            b.compensate(Store(path).load("mpu_tcc"), Store(path).load("mpu_tc"))
+        else:
+            rec = cal.RECORDS
+            b.apply_ints(rec["mpu6xxx"][0])
+            b.compensate(rec["mpu_tcc"][0], rec["mpu_tc"][0])
+        o = array("i", [0] * 7)
+        s2.ns += 1000000
+        b.read_compensated(o)
+        outs.append(list(o))
+    assert outs[0] == outs[1] and outs[0][:6] != [0] * 6
