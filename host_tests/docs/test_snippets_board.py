@@ -7,6 +7,7 @@ A snippet opts in with a marker on the line before its code fence:
   run from the repository root with the .venv first on PATH;
 * ``<!-- check: board-repl -->``: the block is Python typed at the board's REPL, run with
   ``mpremote exec``; ``<!-- check: board-repl expect: TEXT -->`` also wants TEXT in its output.
+  A ``>>>`` session must print on the board what the page shows after each line.
 
 The documented address ``socket://127.0.0.1:2323`` and tty ``build/vboard/tty`` are replaced by
 the test board's own (a free port, its own flash), a bare ``mpremote`` (auto-connect) is pointed
@@ -15,6 +16,7 @@ copy of the checkout, as a reader following README then the docs would. A page's
 REPL blocks run with ``mpremote resume``: the same REPL session, names kept.
 """
 
+import doctest
 import os
 import re
 import subprocess
@@ -48,6 +50,38 @@ def test_some_board_snippets_are_marked():
     for p in PAGES:
         n = p.read_text().count("<!-- check: board-")
         assert n == len(snippets(p)), "%s: a check marker not right above a code block" % p.name
+
+
+def board_doctest(body):
+    """A `>>>` session as one script for the board, and what each line should print: every input
+    line runs, an expression's value is printed as the REPL echoes it (repr, nothing for None), an
+    expected traceback is caught and its exception name printed."""
+    script, wants = [], []
+    for i, ex in enumerate(doctest.DocTestParser().get_examples(body)):
+        src = ex.source.rstrip("\n")
+        script.append("print('@@%d')" % i)
+        if ex.exc_msg is not None:
+            want = ex.exc_msg.split(":")[0].split(".")[-1].strip()
+            script += ["try:"] + ["    " + ln for ln in src.splitlines()]
+            script += ["    print('no exception')", "except Exception as e:", "    print(type(e).__name__)"]
+        else:
+            want = ex.want
+            try:
+                compile(src, "snippet", "eval")
+                script += ["_ = (%s\n)" % src, "if _ is not None:", "    print(repr(_))"]
+            except SyntaxError:
+                script.append(src)
+        wants.append((src, " ".join(want.split())))
+    return "\n".join(script) + "\n", wants
+
+
+def check_doctest(out, wants):
+    """The board's output of board_doctest(), line by line against what the page shows."""
+    parts = re.split(r"^@@(\d+)\r?$", out, flags=re.M)
+    got = {int(parts[k]): " ".join(parts[k + 1].split()) for k in range(1, len(parts) - 1, 2)}
+    for i, (src, want) in enumerate(wants):
+        assert i in got, "stopped before `%s`:\n%s" % (src, out)
+        assert got[i] == want, "`%s` printed %r on the board, the page shows %r" % (src, got[i], want)
 
 
 def checkout(tmp_path):
@@ -94,10 +128,13 @@ def test_board_snippets_run_as_written(tmp_path):
                     resume = ()
                 else:
                     # the page's later REPL blocks continue the same REPL session (no soft reset)
-                    r = b.mpremote(*resume, "exec", body, timeout=300, check=False)
+                    script, wants = board_doctest(body) if ">>> " in body else (body, None)
+                    r = b.mpremote(*resume, "exec", script, timeout=300, check=False)
                     resume = ("resume",)
                     out = r.stdout + r.stderr
                     assert r.returncode == 0 and "Traceback" not in out, "%s:\n%s\n%s" % (page.name, body, out)
+                    if wants is not None:
+                        check_doctest(out, wants)
                     if expect:
                         assert expect in out, "%s: %r not in the output of\n%s\n%s" % (page.name, expect, body, out)
         assert ran == sum(len(snippets(p)) for p in MARKED)
