@@ -145,9 +145,14 @@ def test_record_that_does_not_fit_is_refused_and_nothing_changes():
 
 
 def test_boot_from_the_const_export_reads_what_the_store_boot_reads(tmp_path, monkeypatch):
-    # docs/ram.md: the store's const() export as the boot's source (no store reader at boot)
-    import importlib
+    # docs/ram.md's two blocks as written (paths moved into tmp_path): the store's const() export
+    # as the boot's source, no store reader at boot; it must read what the store boot reads
+    import sys
 
+    from docblocks import REPO, blocks
+
+    docs = [b.body for b in blocks(REPO / "docs" / "ram.md") if b.lang == "python" and "calib_const" in b.body]
+    assert len(docs) == 2, docs
     sim, bus = part(seed=9)
     imu = MPU6xxx(bus)
     imu.calibrate(packets=200)
@@ -155,29 +160,27 @@ def test_boot_from_the_const_export_reads_what_the_store_boot_reads(tmp_path, mo
     for tc in (15.0, 40.0):
         sim.temp_c = tc
         pts.append(imu.bias_point(packets=200))
-    path = str(tmp_path / "cal")
+    path = str(tmp_path / "tempcomp.cal")
     st = Store(path)
     imu.save(st)
     mi = BiasModel(pts).to_ints()
     st.save("mpu_tc", mi)
     st.save("mpu_tcc", compiled(imu, mi))
-    st.export_module(str(tmp_path / "calib_const_rt.py"))
+    exec(docs[0].replace('"/tempcomp.cal"', repr(path)).replace('"/calib_const.py"', repr(str(tmp_path / "calib_const.py"))), {})
     monkeypatch.syspath_prepend(str(tmp_path))
-    cal = importlib.import_module("calib_const_rt")
+    monkeypatch.delitem(sys.modules, "calib_const", raising=False)
     outs = []
-    for how in ("store", "const"):
+    for how in ("store", "docs"):
         s2, bus2 = part(seed=9)
         s2.temp_c = 33.0
-        b = MPU6xxx(bus2)
+        s2.ns += 1000000
+        buf = array("i", [0] * 7)
         if how == "store":
+            b = MPU6xxx(bus2)
             b.restore(Store(path))
             b.compensate(Store(path).load("mpu_tcc"), Store(path).load("mpu_tc"))
+            b.read_compensated(buf)
         else:
-            rec = cal.RECORDS
-            b.apply_ints(rec["mpu6xxx"][0])
-            b.compensate(rec["mpu_tcc"][0], rec["mpu_tc"][0])
-        o = array("i", [0] * 7)
-        s2.ns += 1000000
-        b.read_compensated(o)
-        outs.append(list(o))
+            exec(docs[1], {"i2c": bus2, "buf": buf})
+        outs.append(list(buf))
     assert outs[0] == outs[1] and outs[0][:6] != [0] * 6
