@@ -3,8 +3,8 @@ a fresh virtual board (issue 14).
 
 A snippet opts in with a marker on the line before its code fence:
 
-* ``<!-- check: board-sh -->``: each line is a shell command (mpremote, make, python -m tools),
-  run from the repository root with the .venv first on PATH;
+* ``<!-- check: board-sh -->``: the block runs in ``bash -e`` in a scratch copy of the checkout,
+  with the .venv on PATH only once a block has run ``. .venv/bin/activate`` as README says;
 * ``<!-- check: board-repl -->``: the block is Python typed at the board's REPL, run with
   ``mpremote exec``; ``<!-- check: board-repl expect: TEXT -->`` also wants TEXT in its output.
   A ``>>>`` session must print on the board what the page shows after each line.
@@ -100,14 +100,19 @@ def test_board_snippets_run_as_written(tmp_path):
     b = VirtualBoard(tmp_path / "flash").start()
     work = checkout(tmp_path)
     try:
-        env = dict(os.environ)
-        env["PATH"] = os.pathsep.join([str(Path(sys.executable).parent), env.get("PATH", "")])
+        # the reader's shell: no .venv on PATH until a snippet activates it as the README says
+        venv_bins = {str(Path(sys.executable).parent), str(REPO / ".venv" / "bin"),
+                     os.path.realpath(REPO / ".venv" / "bin")}
+        env = {k: v for k, v in os.environ.items() if k not in ("VIRTUAL_ENV", "PYTHONPATH")}
+        env["PATH"] = os.pathsep.join(d for d in os.environ.get("PATH", "").split(os.pathsep)
+                                      if d and d not in venv_bins)
         env["BOARD_TCP"] = str(b.port)
+        activate = ""  # the reader's shell stays activated for the pages after
 
         def local(text):
             text = text.replace("socket://127.0.0.1:2323", b.url)
             # a bare `mpremote cp ...` finds the one board attached: here, this one
-            text = re.sub(r"^mpremote (?!connect )", "mpremote connect %s " % b.url, text)
+            text = re.sub(r"^mpremote (?!connect )", "mpremote connect %s " % b.url, text, flags=re.M)
             return text.replace("build/vboard/tty", b.pty or "build/vboard/tty")
 
         ran = 0
@@ -116,15 +121,13 @@ def test_board_snippets_run_as_written(tmp_path):
             for kind, body, expect in snippets(page):
                 ran += 1
                 if kind == "board-sh":
-                    for line in body.splitlines():
-                        line = line.split("  #")[0].strip()
-                        if not line:
-                            continue
-                        r = subprocess.run(local(line), shell=True, cwd=work, env=env, capture_output=True,
-                                           text=True, timeout=300)
-                        out = r.stdout + r.stderr
-                        assert r.returncode == 0, "%s: `%s` failed:\n%s" % (page.name, line, out)
-                        assert "Traceback" not in out, "%s: `%s`:\n%s" % (page.name, line, out)
+                    r = subprocess.run(["bash", "-e", "-x", "-c", activate + local(body)], cwd=work, env=env,
+                                       capture_output=True, text=True, timeout=600)
+                    out = r.stdout + r.stderr
+                    assert r.returncode == 0, "%s: failed:\n%s\n%s" % (page.name, body, out)
+                    assert "Traceback" not in out, "%s:\n%s\n%s" % (page.name, body, out)
+                    if ". .venv/bin/activate" in body:
+                        activate = ". .venv/bin/activate\n"
                     resume = ()
                 else:
                     # the page's later REPL blocks continue the same REPL session (no soft reset)
