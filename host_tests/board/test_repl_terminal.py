@@ -1,6 +1,7 @@
 """What a person does (issue 14): start the virtual board, run the REPL command its banner prints
 in a real terminal (tmux), type a line and read the answer, run the guided session's first step,
-and leave with Ctrl-].
+and leave with Ctrl-]. This runs README.md's `mpremote connect build/vboard/tty repl` (the command the
+banner prints) and the three lines of docs/demo.md's guided session, typed as written.
 
 Stock mpremote, a real pty, a real terminal emulator: nothing here talks to the board except
 through the keys typed into tmux.

@@ -90,11 +90,16 @@ def compensation_grid():
         g, a = model.targets(t)
         print("TGT %d %s" % (t, " ".join([str(v) for v in tuple(g) + tuple(a)])))
     mi = model.to_ints()
+    ref = MPU6xxx(SimI2C({0x68: sim}))  # this port's own set-up path, what the boot form replaces
+    ref.compensate(BiasModel.from_ints(mi))
     imu.compensate(compiled(imu, mi), mi)  # the boot form: its per-temperature numbers
     for t in (t0 - 2600, t0 - 2000, t0 - 777, t0, t0 + 1234, t0 + 2000, t0 + 3000):
         imu._ca.update(t)
         imu._cg.update(t)
-        print("RT %d %s" % (t, " ".join([str(v) for v in list(imu._ca._p3) + list(imu._cg._p3)])))
+        ref._ca.update(t)
+        ref._cg.update(t)
+        p = list(imu._ca._p3) + list(imu._cg._p3)
+        print("RT %d %d %s" % (t, p == list(ref._ca._p3) + list(ref._cg._p3), " ".join([str(v) for v in p])))
     for raw in (-32768, -12345, -1, 0, 1, 9999, 32767):
         print("TEMP %d %d" % (raw, imu.temp_c100(raw)))
 

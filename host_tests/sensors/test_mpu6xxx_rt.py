@@ -142,3 +142,45 @@ def test_record_that_does_not_fit_is_refused_and_nothing_changes():
     assert imu._ca is None
     with pytest.raises(ValueError, match="call compensate"):
         imu.read_compensated([0] * 7)
+
+
+def test_boot_from_the_const_export_reads_what_the_store_boot_reads(tmp_path, monkeypatch):
+    # docs/ram.md's two blocks as written (paths moved into tmp_path): the store's const() export
+    # as the boot's source, no store reader at boot; it must read what the store boot reads
+    import sys
+
+    from docblocks import REPO, blocks
+
+    docs = [b.body for b in blocks(REPO / "docs" / "ram.md") if b.lang == "python" and "calib_const" in b.body]
+    assert len(docs) == 2, docs
+    sim, bus = part(seed=9)
+    imu = MPU6xxx(bus)
+    imu.calibrate(packets=200)
+    pts = []
+    for tc in (15.0, 40.0):
+        sim.temp_c = tc
+        pts.append(imu.bias_point(packets=200))
+    path = str(tmp_path / "tempcomp.cal")
+    st = Store(path)
+    imu.save(st)
+    mi = BiasModel(pts).to_ints()
+    st.save("mpu_tc", mi)
+    st.save("mpu_tcc", compiled(imu, mi))
+    exec(docs[0].replace('"/tempcomp.cal"', repr(path)).replace('"/calib_const.py"', repr(str(tmp_path / "calib_const.py"))), {})
+    monkeypatch.syspath_prepend(str(tmp_path))
+    monkeypatch.delitem(sys.modules, "calib_const", raising=False)
+    outs = []
+    for how in ("store", "docs"):
+        s2, bus2 = part(seed=9)
+        s2.temp_c = 33.0
+        s2.ns += 1000000
+        buf = array("i", [0] * 7)
+        if how == "store":
+            b = MPU6xxx(bus2)
+            b.restore(Store(path))
+            b.compensate(Store(path).load("mpu_tcc"), Store(path).load("mpu_tc"))
+            b.read_compensated(buf)
+        else:
+            exec(docs[1], {"i2c": bus2, "buf": buf})
+        outs.append(list(buf))
+    assert outs[0] == outs[1] and outs[0][:6] != [0] * 6

@@ -110,6 +110,20 @@ imu.read_compensated(buf)
 imu.check(every_ms=1000)
 """
 
+# The same records from the store's const() export (Store.export_module, written on the board after
+# the session's save): the boot loads neither the store reader nor the fixed-point set-up.
+BOOT_CONST = """
+import calib_const as cal
+from tempcomp.mpu6xxx import MPU6xxx
+imu = MPU6xxx(ram_board.i2c())
+rec = cal.RECORDS
+imu.apply_ints(rec["mpu6xxx"][0])
+imu.compensate(rec["mpu_tcc"][0], rec["mpu_tc"][0])
+buf = [0] * 7
+imu.read_compensated(buf)
+imu.check(every_ms=1000)
+"""
+
 BOOT_REGISTERS = """
 from tempcomp.mpu6xxx import MPU6xxx
 from tempcomp.store import Store
@@ -238,6 +252,10 @@ def stage(tree, seed=SEED):
     _mpy_cross(board, board[:-3] + ".mpy")
     os.remove(board)
     make_store(os.path.join(d, STORE_NAME), seed)
+    from tempcomp.store import Store
+
+    # as the board writes it (a .py, compiled on the board at import)
+    Store(os.path.join(d, STORE_NAME)).export_module(os.path.join(d, "calib_const.py"))
     return d
 
 
@@ -347,6 +365,7 @@ def _budgets(report, it, staged, how, frozen=False):
     for label, body in (("sensors.restore(board, which=mpu6xxx) + read_compensated", BOOT_SENSORS),
                         ("MPU6xxx.restore + compensate(BiasModel) + read_compensated", BOOT_DRIVER),
                         ("MPU6xxx.restore + compensate(mpu_tcc) + read_compensated", BOOT_COMPILED),
+                        ("calib_const.py (Store.export_module) + compensate(mpu_tcc) + read_compensated", BOOT_CONST),
                         ("MPU6xxx.restore (offset registers) + read_raw", BOOT_REGISTERS)):
         v, _ = measure_boot(it, staged, body, frozen)
         report("AN385 boot path from %s: %s (budget %d KB)" % (how, label, BUDGET_BOOT // 1024),

@@ -1,0 +1,28 @@
+"""Shell blocks marked `<!-- check: host-sh -->` in README.md and docs/ run as written, each page's
+in order under `bash -e`, in a scratch directory standing for a fresh checkout (what they read is
+linked from the repository, what they write stays there)."""
+
+import os
+import subprocess
+
+import docblocks
+import pytest
+from paths import REPO
+
+PAGES = [p for p in docblocks.PAGES if any(b.mark("check: host-sh") is not None for b in docblocks.blocks(p))]
+
+
+def test_some_host_blocks_are_marked():
+    assert PAGES
+
+
+@pytest.mark.parametrize("page", PAGES, ids=[p.name for p in PAGES])
+def test_host_blocks_run_as_written(page, tmp_path):
+    for name in (".venv", "lib", "tools", "boards", "package.json", "manifest.py", "Makefile"):
+        os.symlink(os.path.join(REPO, name), tmp_path / name)
+    for b in docblocks.blocks(page):
+        if b.mark("check: host-sh") is None:
+            continue
+        r = subprocess.run(["bash", "-e", "-c", b.body], cwd=tmp_path, capture_output=True, text=True, timeout=600)
+        out = r.stdout + r.stderr
+        assert r.returncode == 0 and "Traceback" not in out, "%s:\n%s\n%s" % (b.where(), b.body, out)
