@@ -11,6 +11,7 @@ import zlib
 import pytest
 
 from tempcomp import store as st
+from tempcomp.store_check import crc_bitwise
 from tools.board import storetool
 
 
@@ -142,7 +143,7 @@ def test_export_modules_agree_and_import(tmp_path):
 
 def test_crc_fallback_matches_zlib():
     for data in (b"", b"123456789", bytes(range(256)) * 3, GEN2):
-        assert st._crc_bitwise(data) == zlib.crc32(data)
+        assert crc_bitwise(data) == zlib.crc32(data)
 
 
 def test_storetool_cli(tmp_path, capsys):

@@ -151,27 +151,11 @@ class StoreWarning(_WARNING):  # pyright: ignore[reportGeneralTypeIssues]
     """One copy of the store is damaged and another copy was used."""
 
 
-def _warn(msg):
-    try:
-        import warnings  # pyright: ignore[reportMissingImports]  (CPython only)
-
-        warnings.warn(msg, StoreWarning, stacklevel=4)
-    except ImportError:
-        print("tempcomp.store warning:", msg)
-
-
-def _crc_bitwise(data):
-    c = 0xFFFFFFFF
-    for b in data:
-        c ^= b
-        for _ in range(8):
-            c = (c >> 1) ^ 0xEDB88320 if c & 1 else c >> 1
-    return c ^ 0xFFFFFFFF
-
-
 def _crc(data):
     if _crc32 is None:
-        return _crc_bitwise(data)
+        from tempcomp.store_check import crc_bitwise
+
+        return crc_bitwise(data)
     return _crc32(data) & 0xFFFFFFFF
 
 
@@ -208,9 +192,9 @@ class Record:
         return self.values[i] * _pow2(-self.frac[i])
 
     def __repr__(self):
-        return "Record(%r, part=%r, serial=%r, kind=%d, values=%r, frac=%r, t=%d..%d unit %d, counter=%d, time=%d)" % (
-            self.name, self.part, self.serial, self.kind, tuple(self.values), tuple(self.frac),
-            self.t_lo, self.t_hi, self.t_unit, self.counter, self.time)
+        from tempcomp.store_check import record_repr
+
+        return record_repr(self)
 
 
 def _pad4(n):
@@ -275,62 +259,20 @@ def _decode_entries(buf, count, end, gen):
 
 
 def _parse(buf, slot):
-    """Classify one copy: (state, problem, generation, records). slot: an nvm slot, not a file."""
+    """Classify one copy: (state, problem, generation, records). slot: an nvm slot, not a file.
+    An intact copy is read here; any other is diagnosed by tempcomp.store_check."""
     n = len(buf)
-    if n == 0:
-        return _FOREIGN, "is empty (0 bytes)", 0, None
-    head = bytes(buf[0:4])
-    if head != MAGIC and n >= _MIN_IMAGE and _one_bit_off(head):
-        return _DAMAGED, "has a corrupted magic %r (one bit off %r: a flipped bit)" % (head, MAGIC), 0, None
-    if head != MAGIC:
-        if slot:
-            erased = True
-            torn = True
-            for i in range(min(4, n)):
-                b = head[i]
-                erased = erased and b in (0, 0xFF)
-                torn = torn and (b in (0, 0xFF) or b == MAGIC[i])
-            if erased:
-                return _BLANK, "is blank", 0, None
-            if torn:
-                return _DAMAGED, "holds a torn write (magic %r)" % (head,), 0, None
-        return _FOREIGN, "is not a tempcomp store (starts %r, expected %r)" % (head, MAGIC), 0, None
-    if n < _MIN_IMAGE:
-        return _DAMAGED, "is truncated: %d bytes, a store has at least %d" % (n, _MIN_IMAGE), 0, None
-    # Every format version keeps magic, version and length at offsets 0, 4, 8 and the CRC32
-    # last, so a newer store is recognised only when whole: a torn one is just damaged.
-    _, ver, count, length, gen = struct.unpack_from("<4sHHII", buf, 0)
-    if slot:
-        if not _MIN_IMAGE <= length <= n:
-            return _DAMAGED, "has a wrong length: header says %d bytes, slot holds %d" % (length, n), 0, None
-    elif length != n:
-        return _DAMAGED, "has a wrong length: header says %d bytes, file has %d" % (length, n), 0, None
-    stored = struct.unpack_from("<I", buf, length - _CRC)[0]
-    calc = _crc(memoryview(buf)[0:length - _CRC])
-    if stored != calc:
-        return _DAMAGED, "fails its CRC32 check (stored 0x%08x, computed 0x%08x)" % (stored, calc), 0, None
-    if ver > VERSION:
-        return (_NEWER, "was written in store format version %d; this tempcomp reads version %d "
-                "(update tempcomp)" % (ver, VERSION), 0, None)
-    if ver != VERSION:
-        return _DAMAGED, "has an invalid format version %d" % ver, 0, None
-    if gen == 0:
-        return _DAMAGED, "has generation 0", 0, None
-    try:
-        recs = _decode_entries(buf, count, length - _CRC, gen)
-    except ValueError as e:
-        return _DAMAGED, "is malformed: %s" % (e,), 0, None
-    return _OK, "", gen, recs
+    if n >= _MIN_IMAGE and bytes(buf[0:4]) == MAGIC:
+        _, ver, count, length, gen = struct.unpack_from("<4sHHII", buf, 0)
+        if ((length == n or slot and _MIN_IMAGE <= length <= n) and ver == VERSION and gen
+                and struct.unpack_from("<I", buf, length - _CRC)[0] == _crc(memoryview(buf)[0:length - _CRC])):
+            try:
+                return _OK, "", gen, _decode_entries(buf, count, length - _CRC, gen)
+            except ValueError:
+                pass
+    from tempcomp.store_check import parse
 
-
-def _one_bit_off(head):
-    d = 0
-    for i in range(4):
-        x = head[i] ^ MAGIC[i]
-        while x:
-            d += x & 1
-            x >>= 1
-    return d == 1
+    return parse(buf, slot)
 
 
 class Store:
@@ -391,17 +333,6 @@ class Store:
         finally:
             f.close()
 
-    def _read_copies(self):
-        if self._nvm is None:
-            names = self._labels()
-            out = [self._read_file(names[0]), self._read_file(names[1]), None]
-            # path.new is the only name a save writes into: read it only when it is a plain
-            # file of its own (a symlink there could point anywhere, a FIFO would hang the read)
-            if self._alien(names[2]) is None:
-                out[2] = self._read_file(names[2])
-            return out
-        return [bytes(self._nvm[a:a + n]) for a, n in self._slots]
-
     def _entry(self, p):
         """(file type bits, hard links) of the name p itself, never following a symlink; None
         when nothing is there. MicroPython has no lstat: its os.ilistdir reports the entry's
@@ -428,112 +359,41 @@ class Store:
                 return os.stat(p)[0] & _S_IFMT, 1
         return None
 
-    def _alien(self, p):
-        """None when p is absent or a plain file with one link; else what it is, in words."""
-        e = self._entry(p)
-        if e is None:
-            return None
-        t, links = e
-        if t == _S_IFREG:
-            if links > 1:
-                return "a file with %d hard links (a store never makes one)" % links
-            return None
-        if t == _S_IFLNK:
-            target = ""
-            readlink = getattr(os, "readlink", None)
-            if readlink is not None:
-                try:
-                    target = " to %r" % (readlink(p),)
-                except OSError:
-                    pass
-            return "a symbolic link%s (a store never makes one)" % target
-        if t == _S_IFDIR:
-            return "a directory"
-        return "not a regular file (file type 0o%o)" % t
-
-    def _scan(self):
-        """Read every copy; return (best index or -1, states, records, problems)."""
-        labels = self._labels()
-        slot = self._nvm is not None
-        copies = self._read_copies()
-        states = []
-        whys = []
-        best = -1
-        best_gen = 0
-        best_recs = []  # type: list
-        problems = []
-        newer = None
-        damaged = []
-        for i in range(len(labels)):
-            buf = copies[i]
-            if buf is None:
-                alien = None if slot or i != 2 else self._alien(labels[i])
-                if alien is not None:
-                    states.append(_ALIEN)
-                    whys.append("is %s: never read or written through" % alien)
-                    problems.append("%s %s" % (labels[i], whys[-1]))
-                    continue
-                states.append(_MISSING)
-                whys.append("does not exist")
-                continue
-            st, why, gen, recs = _parse(buf, slot)
-            states.append(st)
-            whys.append(why)
-            scratch = not slot and i == 2  # path.new: a torn one is the normal trace of a cut
-            if st == _OK and recs is not None:
-                if gen > best_gen:
-                    best, best_gen, best_recs = i, gen, recs
-            elif st == _NEWER:
-                newer = "%s %s" % (labels[i], why)
-            elif st != _BLANK and not scratch:
-                problems.append("%s %s" % (labels[i], why))
-                if st == _DAMAGED:
-                    from tempcomp.store_salvage import salvage
-
-                    damaged.append((len(problems) - 1, labels[i], why) + salvage(buf))
-        self._damaged = damaged
-        return best, (states, whys), best_recs, best_gen, problems, newer
-
     def _state(self, force=False, writing=False):
-        best, states, recs, gen, problems, newer = self._scan()
-        if newer is not None and not force:
-            raise StoreError(newer)
-        torn_only = self._nvm is not None and _FOREIGN not in states[0]
-        fatal = problems
-        if self._nvm is None and states[0][2] == _ALIEN:
-            fatal = problems[:-1]  # only a warning for reading; a save refuses it (_check_new)
-        if best < 0 and fatal and not force and not torn_only:
-            raise StoreError("no usable copy of the store: " + "; ".join(problems) + (
-                "; refusing to overwrite it (pass force=True to start a new store, losing "
-                "what is there)" if writing else ""))
-        # nvm slots are rewritten in place, so a slot of ours that fails its checks beside a
-        # blank one is what a cut during the first save leaves: nothing was stored yet.
-        # Files are different: path and path.old only ever appear whole (by rename), so a
-        # damaged one with no good copy is an error above.
-        # A damaged copy newer than the one used (a flipped bit in the newest file, not a cut):
-        # the records only it held are lost; record() says so instead of "never saved".
-        self._lost = None
-        lost_at = -1
-        if best >= 0:
-            for k, label, why, hgen, names, whole in self._damaged:
-                if hgen > gen:
-                    have = [r.name for r in recs]
-                    self._lost = (label, why, hgen, [x for x in names if x not in have], whole)
-                    lost_at = k
-        self.warnings = []
-        for i in range(len(problems)):
-            p = problems[i]
-            if best >= 0:
-                msg = "%s; using %s (generation %d)" % (p, self._labels()[best], gen)
-                if i == lost_at:
-                    from tempcomp.store_salvage import lost_names
+        """(best copy or -1, (states, problems), records, generation). Here only when every
+        copy there is intact and nothing is at path.new; else tempcomp.store_check decides."""
+        slot = self._nvm is not None
+        if slot:
+            copies = [bytes(self._nvm[a:a + n]) for a, n in self._slots]
+        else:
+            p = self.path or ""
+            copies = [self._read_file(p), self._read_file(p + ".old"), None]
+            if self._entry(p + ".new") is not None:  # what a cut (or someone) left there
+                copies = None
+        best, gen, recs, states = -1, 0, [], []
+        for i in range(len(copies or ())):
+            buf = copies[i]  # pyright: ignore[reportOptionalSubscript]
+            s = _MISSING
+            if buf is not None:
+                if slot and bytes(buf[0:4]) in (b"\xff\xff\xff\xff", b"\0\0\0\0"):
+                    s = _BLANK  # an erased slot: free to write
+                else:
+                    s, _, g, r = _parse(buf, slot)
+                    if s != _OK:
+                        copies = None
+                        break
+                    if g > gen:
+                        best, gen, recs = i, g, r
+            states.append(s)
+        if copies is None:
+            from tempcomp.store_check import state
 
-                    msg += "; " + lost_names(self._lost)
-            else:
-                msg = "%s; no calibration stored" % p
-            self.warnings.append(msg)
-            _warn(msg)
-        return best, states, recs, gen
+            return state(self, force, writing)
+        self.warnings = []
+        self._damaged = []
+        self._lost = None
+        whys = ["is blank" if s == _BLANK else "" if s == _OK else "does not exist" for s in states]
+        return best, (states, whys), recs, gen
 
     def _set_cache(self, recs, gen):
         index = {}

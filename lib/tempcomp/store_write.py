@@ -362,7 +362,9 @@ def _open_new(st, p, force):
     # a foreign file put at path.new cannot make it write anywhere else. Whatever is there
     # now was vetted by _check_new (or force): only the name is removed.
     if st._entry(p) is not None:
-        alien = st._alien(p)
+        from tempcomp.store_check import alien as what
+
+        alien = what(st, p)
         if alien is not None and not force:
             raise StoreError("%s became %s during the save; refusing to write it" % (p, alien))
         _remove(st, p)
