@@ -4,6 +4,7 @@ Prints machine-readable lines: "OK name", "VAL name repr", "HEX name hex", ALLOC
 """
 import builtins
 import os
+import struct
 from array import array
 
 import allocprobe
@@ -166,6 +167,25 @@ def main():
     nvm[300] ^= 1
     n2 = st.Store(nvm=nvm)
     ok("nvm_flip", n2.load("g") == (3, 4) and len(n2.warnings) == 1)
+
+    # a whole newest copy (CRC right) with a malformed entry: the older copy is used and the
+    # warning names the fault in words (tempcomp.store_check, from the decoder's code)
+    _rm("/mal.cal")
+    m = st.Store("/mal.cal")
+    m.save("g", (1,))
+    m.save("g", (2,))
+    f = open("/mal.cal", "rb")
+    img = bytearray(f.read())
+    f.close()
+    img[16 + 28 + 1] = 40  # header, fixed entry, name "g": frac[0]
+    img[-4:] = struct.pack("<I", st._crc(img[:-4]))
+    f = open("/mal.cal", "wb")
+    f.write(img)
+    f.close()
+    m2 = st.Store("/mal.cal")
+    ok("malformed", m2.load("g") == (1,) and len(m2.warnings) == 1
+       and "/mal.cal is malformed: entry 0: frac[0] = 40 out of range; using /mal.cal.old" in m2.warnings[0])
+    _rm("/mal.cal")
 
     torn_writes("/torn.bin")
 

@@ -171,3 +171,28 @@ def test_storetool_cli(tmp_path, capsys):
 def test_entry_layout_is_what_struct_says():
     # the table's fixed entry part is 28 bytes and the header 16: checked against struct
     assert struct.calcsize("<HBBBBBBHHiiII") == 28 and struct.calcsize("<4sHHII") == 16
+
+
+@pytest.mark.parametrize("change, words", [
+    (dict(serial=b"S\x01"),  # header 16 + fixed entry 28 + "gyro0" + "MPU6050" + "S"
+     "is malformed: byte 0x01 at offset 57 is not printable ASCII"),
+    (dict(frac=[0, 40]), "is malformed: entry 0: frac[1] = 40 out of range"),
+    (dict(counter=5), "is malformed: entry 0: counter 5 is after the store generation 1"),
+])
+def test_malformed_entry_is_named_in_words(tmp_path, change, words):
+    # a whole copy (CRC right) whose entry breaks a rule of docs/store.md: the intact older copy
+    # is used, and the warning says what is wrong with the newest, in words (tempcomp.store_check)
+    p = str(tmp_path / "cal.bin")
+    with open(p + ".old", "wb") as f:
+        f.write(GEN1)
+    bad = dict(E1, **change)
+    with open(p, "wb") as f:
+        f.write(_image(1, [_entry(**bad)]))
+    s = st.Store(p)
+    with pytest.warns(st.StoreWarning):
+        assert s.load("gyro0") == (1, -2)
+    assert len(s.warnings) == 1
+    assert s.warnings[0].startswith(p + " " + words + "; using %s.old (generation 1)" % p), s.warnings
+    assert st._parse(_image(1, [_entry(**bad)]), False)[1] == words
+    # two entries of one name
+    assert st._parse(_image(2, [_entry(**E1), _entry(**E1)]), False)[1] == "is malformed: entry 1: name 'gyro0' appears twice"

@@ -39,7 +39,7 @@ def test_vm_checks_pass(vm_run):
     fails = [ln for ln in vm_run.splitlines() if ln.startswith("FAIL")]
     assert not fails, vm_run
     oks = {ln.split()[1] for ln in vm_run.splitlines() if ln.startswith("OK ")}
-    assert {"keyerror", "other_part", "bad_name", "int32", "non_ascii", "nvm", "nvm_flip",
+    assert {"keyerror", "other_part", "bad_name", "int32", "non_ascii", "nvm", "nvm_flip", "malformed",
             "torn_writes", "rename_cut_before", "rename_cut_after"} <= oks
 
 

@@ -205,10 +205,15 @@ def _entry_size(nb, pb, sb, m):
     return _ENTRY + _pad4(nb + pb + sb + m) + 4 * m
 
 
+# A malformed entry raises ValueError(code, *numbers): the words are tempcomp.store_check's
+# _MALFORMED[code], built only when a copy is diagnosed (a boot whose store is intact never
+# loads them).
+
+
 def _text(buf, p, n, first):
     for i in range(p, p + n):
         if not first <= buf[i] <= 0x7E:
-            raise ValueError("byte 0x%02x at offset %d is not printable ASCII" % (buf[i], i))
+            raise ValueError(0, buf[i], i)
     return bytes(buf[p:p + n]).decode()
 
 
@@ -218,23 +223,23 @@ def _decode_entries(buf, count, end, gen):
     off = _HDR
     for k in range(count):
         if off + _ENTRY > end:
-            raise ValueError("entry %d at offset %d runs past the end (%d)" % (k, off, end))
+            raise ValueError(1, k, off, end)
         (elen, kind, t_unit, nl, pl, sl, res1, m, res2, t_lo, t_hi, counter,
          tm) = struct.unpack_from("<HBBBBBBHHiiII", buf, off)
         if res1 or res2:
-            raise ValueError("entry %d: reserved bytes are not zero" % k)
+            raise ValueError(2, k)
         if not 1 <= nl <= MAX_NAME or pl > MAX_PART or sl > MAX_SERIAL or m > MAX_VALUES:
-            raise ValueError("entry %d: field lengths %d/%d/%d/%d out of range" % (k, nl, pl, sl, m))
+            raise ValueError(3, k, nl, pl, sl, m)
         if elen != _entry_size(nl, pl, sl, m) or off + elen > end:
-            raise ValueError("entry %d: length %d does not match its fields or the store" % (k, elen))
+            raise ValueError(4, k, elen)
         if counter > gen:
-            raise ValueError("entry %d: counter %d is after the store generation %d" % (k, counter, gen))
+            raise ValueError(5, k, counter, gen)
         p = off + _ENTRY
         name = _text(buf, p, nl, 0x20)
         part = _text(buf, p + nl, pl, 0x20)
         serial = _text(buf, p + nl + pl, sl, 0x20)
         if name in seen:
-            raise ValueError("entry %d: name %r appears twice" % (k, name))
+            raise ValueError(6, k, name)
         seen[name] = True
         p += nl + pl + sl
         frac = array("b", [0] * m)
@@ -242,11 +247,11 @@ def _decode_entries(buf, count, end, gen):
             f = buf[p + i]
             f = f - 256 if f & 0x80 else f
             if not FRAC_MIN <= f <= FRAC_MAX:
-                raise ValueError("entry %d: frac[%d] = %d out of range" % (k, i, f))
+                raise ValueError(7, k, i, f)
             frac[i] = f
         for i in range(p + m, off + elen - 4 * m):
             if buf[i]:
-                raise ValueError("entry %d: padding is not zero" % k)
+                raise ValueError(8, k)
         values = array("i", [0] * m)
         p = off + elen - 4 * m
         for i in range(m):
@@ -254,7 +259,7 @@ def _decode_entries(buf, count, end, gen):
         recs.append(Record(name, values, frac, part, serial, kind, t_lo, t_hi, t_unit, counter, tm))
         off += elen
     if off != end:
-        raise ValueError("%d bytes after the last entry" % (end - off))
+        raise ValueError(9, end - off)
     return recs
 
 

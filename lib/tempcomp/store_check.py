@@ -33,6 +33,21 @@ _S_IFDIR = const(0o040000)
 _S_IFLNK = const(0o120000)
 
 
+# what tempcomp.store's decoder found wrong with an entry: ValueError(code, *numbers)
+_MALFORMED = (
+    "byte 0x%02x at offset %d is not printable ASCII",
+    "entry %d at offset %d runs past the end (%d)",
+    "entry %d: reserved bytes are not zero",
+    "entry %d: field lengths %d/%d/%d/%d out of range",
+    "entry %d: length %d does not match its fields or the store",
+    "entry %d: counter %d is after the store generation %d",
+    "entry %d: name %r appears twice",
+    "entry %d: frac[%d] = %d out of range",
+    "entry %d: padding is not zero",
+    "%d bytes after the last entry",
+)
+
+
 def warn(msg):
     try:
         import warnings  # pyright: ignore[reportMissingImports]  (CPython only)
@@ -113,7 +128,8 @@ def parse(buf, slot):
     try:
         recs = _decode_entries(buf, count, length - _CRC, gen)
     except ValueError as e:
-        return _DAMAGED, "is malformed: %s" % (e,), 0, None
+        a = e.args
+        return _DAMAGED, "is malformed: " + _MALFORMED[a[0]] % tuple(a[1:]), 0, None
     return _OK, "", gen, recs
 
 
