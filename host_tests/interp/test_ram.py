@@ -97,3 +97,19 @@ def test_what_a_boot_loads_late_works_on_the_firmware(interp, tmp_path):
     assert follow == [ref.stdout.strip()], (out, ref.stdout)
     assert follow[0].startswith("FOLLOW True False ")  # wrote once, then nothing until T moves
     assert "records only it held (lost): 'b'" in out, out
+
+
+@pytest.mark.parametrize("interp", ["an385"], indirect=True)
+def test_an_intact_store_is_read_by_the_reader_alone(interp, tmp_path):
+    # the boot's heap figure (docs/ram.md) holds only while an intact store loads nothing more:
+    # the diagnosis (store_check), the salvage and the writer come with a damaged copy or a save
+    from tempcomp.store import Store
+
+    st = Store(str(tmp_path / "t.cal"))
+    st.save("a", (1, 2))
+    st.save("b", (3, 4))  # two generations: path and path.old both read
+    out = interp.run("import sys\nfrom tempcomp.store import Store\nprint('VAL', Store('/st/t.cal').load('b'))\n"
+                     "print('LOADED', ' '.join(sorted(m for m in sys.modules if m.startswith('tempcomp'))))\n",
+                     mounts=(str(tmp_path) + ":/st",))
+    assert "VAL (3, 4)" in out, out
+    assert out.split("LOADED ", 1)[1].split() == ["tempcomp", "tempcomp.store"], out
