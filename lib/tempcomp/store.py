@@ -63,8 +63,10 @@ refuses a ``path.new`` that is a symlink, a directory or someone else's file (``
 removes that name; it never writes through it).
 Warnings (one damaged copy, the other used) are printed and kept in ``Store.warnings``.
 
-Heap: this module is the reader a boot needs; encoding, the crash-safe commit and the const()
-export are in ``tempcomp.store_write``, loaded by the first write (docs/ram.md).
+Heap: this module is the reader of an intact store, what a boot needs; encoding, the crash-safe
+commit and the const() export are in ``tempcomp.store_write``, loaded by the first write; the
+diagnosis of a copy that fails a check (its words, the warnings and errors above, what is at
+``path.new``) in ``tempcomp.store_check``, loaded only then (docs/ram.md).
 """
 
 import os
