@@ -89,7 +89,9 @@ def checkout(tmp_path):
     what they write (tempcomp.cal, cal.json, ...) stays out of the repository."""
     work = tmp_path / "checkout"
     work.mkdir()
-    for name in (".venv", "lib", "tools", "boards", "package.json", "manifest.py", "Makefile"):
+    # no Makefile: `make` there would run its set-up (npm ci) through the linked tools/ and
+    # replace the repository's node_modules; make targets are marked not-run
+    for name in (".venv", "lib", "tools", "boards", "package.json", "manifest.py"):
         os.symlink(REPO / name, work / name)
     return work
 

@@ -39,3 +39,12 @@ def test_snippets_found():
 def test_every_snippet_is_run_or_says_why_not():
     bad = ["%s (```%s): %s" % (b.where(), b.lang, kind(b)) for b in snippets() if kind(b) not in ("run", "not-run")]
     assert not bad, "\n".join(bad)
+
+
+def test_run_shell_blocks_start_no_make_target():
+    # make's targets set up first (npm ci, pip, firmware) and the long ones are jobs for the lead:
+    # a shell block with one is marked not-run instead of run from a scratch checkout
+    for b in snippets():
+        if b.mark("check: board-sh") is not None or b.mark("check: host-sh") is not None:
+            made = [ln for ln in b.body.splitlines() if ln.strip().startswith("make ") or " make " in ln.split("#")[0]]
+            assert not made, "%s runs make: %s" % (b.where(), made)
