@@ -369,30 +369,31 @@ class Store:
     def _state(self, force=False, writing=False):
         """(best copy or -1, (states, problems), records, generation). Here only when every
         copy there is intact and nothing is at path.new; else tempcomp.store_check decides."""
-        slot = self._nvm is not None
-        if slot:
-            copies = [bytes(self._nvm[a:a + n]) for a, n in self._slots]
+        nvm = self._nvm
+        slot = nvm is not None
+        whole = True
+        if nvm is not None:
+            copies = [bytes(nvm[a:a + n]) for a, n in self._slots]
         else:
             p = self.path or ""
             copies = [self._read_file(p), self._read_file(p + ".old"), None]
-            if self._entry(p + ".new") is not None:  # what a cut (or someone) left there
-                copies = None
+            whole = self._entry(p + ".new") is None  # else what a cut (or someone) left there
         best, gen, recs, states = -1, 0, [], []
-        for i in range(len(copies or ())):
-            buf = copies[i]  # pyright: ignore[reportOptionalSubscript]
+        for i in range(len(copies)):
+            if not whole:
+                break
+            buf = copies[i]
             s = _MISSING
             if buf is not None:
                 if slot and bytes(buf[0:4]) in (b"\xff\xff\xff\xff", b"\0\0\0\0"):
                     s = _BLANK  # an erased slot: free to write
                 else:
                     s, _, g, r = _parse(buf, slot)
-                    if s != _OK:
-                        copies = None
-                        break
+                    whole = s == _OK
                     if g > gen:
                         best, gen, recs = i, g, r
             states.append(s)
-        if copies is None:
+        if not whole:
             from tempcomp.store_check import state
 
             return state(self, force, writing)
