@@ -9,6 +9,10 @@ for p in (os.path.join(REPO, "lib"), REPO, os.path.join(HERE, "helpers")):
     if p not in sys.path:
         sys.path.insert(0, p)
 os.environ.setdefault("BLINKA_OS_AGNOSTIC", "1")
+# One BLAS thread (set before numpy loads OpenBLAS): the host fits solve thousands of small
+# least-squares systems, and a second OpenBLAS thread that has to wait for a busy core makes each
+# product wait for a scheduler tick - the blind gap benchmark took 133 s instead of 12 s that way.
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import pytest  # noqa: E402
 
