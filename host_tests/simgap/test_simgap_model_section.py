@@ -1,4 +1,4 @@
-"""The JSON `model` section (/work/coord/API-simgap-model.md, docs/simgap.md): evaluating the
+"""The JSON `model` section (docs/simgap.md, its `model` section): evaluating the
 exported numbers reproduces the fit's own predictions for every effect family, and a pure
 quadratic log exports its true coefficients."""
 import json
