@@ -412,15 +412,7 @@ class Capture:
 
     def calibrate(self, packets=1000, settle_ms=50, gyro_spread_dps=5, accel_spread_mg=150, max_tilt_mg=150,
                   max_bias_dps=None, max_turn_dps=1):
-        """Capture ``packets`` samples at rest (1 kHz), write and verify the offsets.
-
-        Lay the part still on any face (up or down). Returns ((gx, gy, gz), (ax, ay, az))
-        register values as ``offsets()`` reads them. Raises MPUError if it moved (spread over
-        the limits), turned (gravity moved by more than max_turn_dps, or a gyro bias beyond the
-        part's datasheet range, ``zro_limit_dps()``, or max_bias_dps), is not lying on a face,
-        a read was implausible, or the bus failed: the previous offsets and the sensor
-        configuration are then left in place.
-        """
+        """The body of ``MPU6xxx.calibrate`` (its docstring is the contract)."""
         t, cur = self._capture_at_rest(packets, settle_ms)
         g, e = self._analyse(cur, gyro_spread_dps, accel_spread_mg, max_tilt_mg, t, max_bias_dps, max_turn_dps)
         n = self._n
