@@ -9,6 +9,7 @@ import time
 
 import numpy as np
 
+from tools.bench.core import UNPACK_FLOOR
 from tools.firmware import interp, mpvm
 from tools.simgap import devmodel, replay
 
@@ -61,20 +62,7 @@ raw = array('i', [1200, -800, 300])
 out = array('i', [0, 0, 0])
 acc = array('i', [100, -300, 950])
 
-def unpack(buf, o):
-    v = buf[0] << 8 | buf[1]
-    if v & 0x8000:
-        v -= 0x10000
-    o[0] = v
-    v = buf[2] << 8 | buf[3]
-    if v & 0x8000:
-        v -= 0x10000
-    o[1] = v
-    v = buf[4] << 8 | buf[5]
-    if v & 0x8000:
-        v -= 0x10000
-    o[2] = v
-
+%(unpack)s
 buf = bytearray(b"\x80\x00\x12\x34\x7f\xff")
 
 def floor(n):
@@ -120,20 +108,7 @@ raw = array('i', [1200, -800, 300]); out = array('i', [0, 0, 0]); acc = array('i
 ap = a.apply
 buf = bytearray(b"\x80\x00\x12\x34\x7f\xff")
 
-def unpack(buf, o):
-    v = buf[0] << 8 | buf[1]
-    if v & 0x8000:
-        v -= 0x10000
-    o[0] = v
-    v = buf[2] << 8 | buf[3]
-    if v & 0x8000:
-        v -= 0x10000
-    o[1] = v
-    v = buf[4] << 8 | buf[5]
-    if v & 0x8000:
-        v -= 0x10000
-    o[2] = v
-
+%(unpack)s
 def run(n, mask):
     i = 0
     t0 = time.ticks_us()
@@ -197,7 +172,7 @@ def firmware_costs(models, n=200):
         for name, m in models:
             runs = []
             for pad in PADS:
-                out = it.run(FW_BENCH % {"model": json.dumps(m), "n": n, "pad": pad}, timeout=600)
+                out = it.run(FW_BENCH % {"model": json.dumps(m), "n": n, "pad": pad, "unpack": UNPACK_FLOOR}, timeout=600)
                 line = [ln for ln in out.splitlines() if ln.startswith("INSN ")][0]
                 runs.append(tuple(int(v) for v in line.split()[1:]))
             # the least of the layouts: the UART's interrupts (the host mount) only ever add
@@ -232,7 +207,7 @@ def bench(report):
         _vm_precision(report, time.time())
         return
     report("augment: Cortex-M3 firmware not available (%s); VM time ratios instead" % why, "", "")
-    out = mpvm.run(VM_BENCH % dict(models=json.dumps(models), n=3000, reps=3), heap="4m", timeout=900)
+    out = mpvm.run(VM_BENCH % dict(unpack=UNPACK_FLOOR, models=json.dumps(models), n=3000, reps=3), heap="4m", timeout=900)
     times = {}
     for line in out.splitlines():
         if line.startswith("TIME "):
