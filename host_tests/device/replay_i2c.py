@@ -62,3 +62,34 @@ class ReplayI2C:
         while i < n:
             self.regs[reg + i] = buf[i]
             i += 1
+
+
+class FrameI2C(ReplayI2C):
+    """ReplayI2C whose 14-byte data read (ACCEL_XOUT_H..GYRO_ZOUT_L) costs one C call.
+
+    On a board, ``machine.I2C.readfrom_mem_into`` is C code; ReplayI2C's Python byte loop would
+    count as driver time in a benchmark. Here each data read copies the next of a ring of
+    register frames with ``io.BytesIO.readinto``: the image's data registers with TEMP_OUT set
+    to ``temps[i]`` (raw codes), frame i on read i.
+    """
+
+    def __init__(self, image, stream, fifo_count, temps):
+        import io
+
+        super().__init__(image, stream, fifo_count, t_step=0)
+        ring = bytearray()
+        for t in temps:
+            f = bytearray(self.regs[0x3B:0x49])
+            f[6] = (t >> 8) & 0xFF
+            f[7] = t & 0xFF
+            ring += f
+        self.frames = io.BytesIO(ring)
+
+    def readfrom_mem_into(self, addr, reg, buf):
+        if reg == 0x3B and len(buf) == 14:
+            f = self.frames
+            if f.readinto(buf) < 14:
+                f.seek(0)
+                f.readinto(buf)
+            return
+        ReplayI2C.readfrom_mem_into(self, addr, reg, buf)

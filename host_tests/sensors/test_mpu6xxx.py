@@ -457,6 +457,9 @@ def test_offset_compensated_in_software():
     out = array("i", [0] * 7)
     for tc in (10.0, 45.0):
         sim.temp_c = tc
+        for _ in range(imu.temp_avg):  # a step of 35 degC: the next block of readings applies it
+            sim.ns += 1000000
+            imu.read_compensated(out)
         acc = [0] * 6
         m = 400
         for _ in range(m):
@@ -498,6 +501,69 @@ def test_software_path_matches_float_reference():
                     worst = max(worst, abs(imu._cg.apply(raw, k) - ref_g), abs(imu._ca.apply(raw, k) - ref_a))
     print("worst software-compensation error: %.3f output LSB (mdps / mg)" % worst)
     assert worst <= 0.6
+
+
+class _Tap:
+    # the bus as the driver sees it, keeping a copy of each 14-byte data read for the test
+    def __init__(self, bus):
+        self.bus = bus
+        self.last = bytearray(14)
+
+    def readfrom_mem_into(self, addr, reg, buf):
+        self.bus.readfrom_mem_into(addr, reg, buf)
+        if reg == 0x3B and len(buf) == 14:
+            self.last[:] = buf
+
+    def writeto_mem(self, addr, reg, buf):
+        self.bus.writeto_mem(addr, reg, buf)
+
+
+def _words(b):
+    return [int.from_bytes(b[i : i + 2], "big", signed=True) for i in range(0, 14, 2)]
+
+
+@pytest.mark.parametrize("avg", [1, 4, 16, 5])
+def test_read_compensated_applies_the_mean_of_each_block_of_temperature_readings(avg):
+    sim, bus = make("MPU-6500", seed=11, face="+z", **QUIET)
+    tap = _Tap(bus)
+    imu = MPU6xxx(tap)
+    t0 = 4000
+    pts = [(t0 - 2000, (10.5, -20.25, 3.0), (1000.0, -501.5, 2300.0)),
+           (t0, (12.0, -19.0, 2.5), (1004.0, -498.0, 2296.5)),
+           (t0 + 2000, (14.5, -17.0, 1.0), (1010.0, -493.0, 2290.0))]
+    imu.compensate(BiasModel(pts))
+    imu.temp_avg = avg
+    ref = MPU6xxx(SimI2C({0x68: MPU6xxxSim("MPU-6500", seed=11)}))
+    ref.compensate(BiasModel(pts))  # its Compensators, moved to the temperature expected here
+    rng = __import__("random").Random(3)
+    out = [0] * 7
+    block = []
+    applied = None
+    for i in range(120):
+        # a ramp with noise of several 8-LSB steps, as a real die sensor reads
+        sim.temp_c = 30.0 + 0.05 * i + rng.gauss(0.0, 0.03)  # inside the model's 27-39 degC
+        sim.ns += 1000000
+        imu.read_compensated(out)
+        w = _words(tap.last)
+        block.append(w[3])
+        if applied is None:
+            applied = w[3] - w[3] % 8  # the first reading applies at once
+            block = []
+        elif len(block) == avg:
+            applied = (sum(block) // avg) // 8 * 8
+            block = []
+        ref._ca.update(applied)
+        ref._cg.update(applied)
+        exp = [ref._ca.apply(w[k], k) for k in range(3)] + [ref._cg.apply(w[4 + k], k) for k in range(3)]
+        assert list(out[:6]) == exp, (i, avg, applied)
+        assert out[6] == imu.temp_c100(w[3])  # the sample's own temperature
+    for bad in (0, -1, 128, 16.0, True, None):
+        imu.temp_avg = bad
+        with pytest.raises(ValueError, match="temp_avg must be an int from 1 to 127, got"):
+            for _ in range(130):
+                imu.read_compensated(out)
+        imu.temp_avg = avg
+        imu.read_compensated(out)  # the refusal left the block where it was
 
 
 def test_bias_model_fits_and_round_trips():

@@ -108,6 +108,9 @@ MAX_PACKETS = const(16000)
 _RETRIES = const(3)
 _T_QUANT = const(8)  # per-sample temperature compensation steps of 8 LSB (~0.024 degC)
 _T_MASK = const(-8)  # t & _T_MASK == t - t % _T_QUANT
+# read_compensated's temperature block in one int: (sum of readings) * 128 + readings still to
+# come, so temp_avg < 128; |sum| < 127 * 2**15 < 2**22, so |state| < 2**29 stays a small int
+_T_CNT = const(127)
 _READS = const(4)  # offsets are re-read until two reads agree, this many times at most
 
 
@@ -163,9 +166,8 @@ class MPU6xxx:
         self._w1 = bytearray(1)
         self._d14 = bytearray(14)
         self._capture = None  # tempcomp.mpu6xxx_cal.Capture, made by the first capture
-        self._ca = None
-        self._cg = None
-        self._tq = None
+        self.temp_avg = 16  # read_compensated: temperature readings averaged per update
+        self._comp_set(None, None)
         self._tsens = row[TEMP_SENS]  # read_compensated's temperature, inline
         self._tsens2 = 2 * row[TEMP_SENS]
         self._tzero = row[TEMP_ZERO]
@@ -411,8 +413,22 @@ class MPU6xxx:
             from tempcomp.mpu6xxx_rt import resume as compensate
         compensate(self, model, check)
 
+    def _comp_set(self, ca, cg):
+        # the Compensators read_compensated() uses; its temperature block starts again, so the
+        # first reading after compensate() is applied at once
+        self._ca = ca
+        self._cg = cg
+        self._tq = None
+        self._tdiv = 1
+        self._tp = 1  # sum 0, one reading to come
+
     def read_compensated(self, out):
-        """out[0..2] accel mg, out[3..5] gyro mdps, out[6] degC/100; zero allocation."""
+        """out[0..2] accel mg, out[3..5] gyro mdps, out[6] degC/100; zero allocation.
+
+        The compensation's temperature is the mean of each block of ``temp_avg`` readings
+        (default 16; 1 to 127), applied from the sample that completes the block; the first
+        reading after compensate() is applied at once. out[6] is this sample's own reading.
+        """
         ca = self._ca
         cg = self._cg
         if ca is None or cg is None:
@@ -420,12 +436,26 @@ class MPU6xxx:
         b = self._d14
         self._dev.read_into(_ACCEL_XOUT_H, b)
         t = ((b[6] << 8 | b[7]) ^ 0x8000) - 0x8000
-        tq = t & _T_MASK  # t - t % 8, the compensation's temperature step
-        if tq != self._tq:
-            # only when the step changes: a steady part pays for neither update() call
-            ca.update(tq)
-            cg.update(tq)
-            self._tq = tq
+        p = self._tp + (t << 7) - 1
+        if p & _T_CNT:
+            self._tp = p
+        else:
+            # a block is complete. The die temperature moves far slower than samples come, and
+            # one TEMP_OUT reading is noisy (docs/mpu6xxx.md: a new 8-LSB step on most samples
+            # of a real log): the block mean is quieter, and update() runs at most once a block
+            tq = ((p >> 7) // self._tdiv) & _T_MASK
+            if tq != self._tq:
+                ca.update(tq)
+                cg.update(tq)
+                self._tq = tq
+            n = self.temp_avg
+            if n is not self._tdiv:
+                # 'is': equal ints below 128 are one object (MicroPython: immediate; CPython:
+                # cached), so only a new value, a float or a bool is checked here, once
+                if type(n) is not int or not 0 < n <= _T_CNT:
+                    raise ValueError("temp_avg must be an int from 1 to 127, got %r" % (n,))
+                self._tdiv = n
+            self._tp = n
         # both Compensators' 3-axis numbers (fixedpoint's burst path: gain limbs, offset term
         # with the rounding half, K = 15, S), unrolled as in Compensator._be16_3 and with its
         # bound: |v*g| <= 2**28, |(v*l) >> 15| < 2**15, |c| <= 2**29 + 2**23

@@ -133,6 +133,4 @@ def resume(imu, v, model=None):
         if cur[k] & m != v[4 + k] & m:
             raise ValueError("mpu_tcc was built for other offset registers: restore() the offsets saved "
                              "with it, or call compensate(model)")
-    imu._ca = _State(v, _HEAD)
-    imu._cg = _State(v, _HEAD + _PER)
-    imu._tq = None
+    imu._comp_set(_State(v, _HEAD), _State(v, _HEAD + _PER))

@@ -208,6 +208,10 @@ def follow(imu, model, step_c100=50):
 def compensate(imu, model, check=None):  # check: used by the compiled form only
     # MPU6xxx.compensate(model) for a BiasModel: the fixed-point set-up, here beside the model,
     # so a boot that resumes the compiled state (tempcomp.mpu6xxx_rt) never loads it
+    imu._comp_set(*_compensators(imu, model))
+
+
+def _compensators(imu, model):
     gdps, ag = imu.ranges()
     cur = imu._read_offsets()
     gfs = gdps // 250
@@ -219,9 +223,7 @@ def compensate(imu, model, check=None):  # check: used by the compiled form only
     t_cal = model.t_cal
     cg = Compensator(offs_g, [[131 / gfs]] * 3, t_cal, out_scale=1000, t_ref=model.t_ref, policy=model.policy)
     ca = Compensator(offs_a, [[16384 / afs]] * 3, t_cal, out_scale=1000, t_ref=model.t_ref, policy=model.policy)
-    imu._cg = cg
-    imu._ca = ca
-    imu._tq = None  # read_compensated's last temperature step
+    return ca, cg
 
 
 def compiled(imu, model_ints):
@@ -236,17 +238,12 @@ def compiled(imu, model_ints):
 
     gdps, ag = imu.ranges()
     cur = imu._read_offsets()
-    saved = (imu._ca, imu._cg, imu._tq)
-    try:
-        compensate(imu, BiasModel.from_ints(model_ints))
-        out = [VERSION, model_hash(model_ints), gdps, ag] + list(cur)
-        for c in (imu._ca, imu._cg):
-            if c is None or c._p3 is None or min(c._fd) < 0:
-                raise ValueError("compiled(): needs 3 int16 axes with constant scales")
-            out += [c._t_lo, c._t_hi, c._fxm, c._fxl, c._fxs, c._half, c._k, c._s]
-            out += list(c._gh) + list(c._gl) + list(c._fd) + list(c._fs) + list(c._fq)
-    finally:
-        imu._ca, imu._cg, imu._tq = saved
+    out = [VERSION, model_hash(model_ints), gdps, ag] + list(cur)
+    for c in _compensators(imu, BiasModel.from_ints(model_ints)):
+        if c._p3 is None or min(c._fd) < 0:
+            raise ValueError("compiled(): needs 3 int16 axes with constant scales")
+        out += [c._t_lo, c._t_hi, c._fxm, c._fxl, c._fxs, c._half, c._k, c._s]
+        out += list(c._gh) + list(c._gl) + list(c._fd) + list(c._fs) + list(c._fq)
     if len(out) != LENGTH:
         raise ValueError("compiled(): %d values, expected %d" % (len(out), LENGTH))
     return out

@@ -175,7 +175,7 @@ insn("float_careful_update", careful_update, (1234.0,), 300)
 
 MPU = r"""
 from array import array
-from replay_i2c import ReplayI2C
+from replay_i2c import FrameI2C, ReplayI2C
 from tempcomp.mpu6xxx import MPU6xxx
 from tempcomp.mpu6xxx_tc import BiasModel
 floor()
@@ -185,15 +185,30 @@ t0 = %(t0)d
 pts = [(t0 - 2000, (10.5, -20.25, 3.0), (1000.0, -501.5, 2300.0)),
        (t0, (12.0, -19.0, 2.5), (1004.0, -498.0, 2296.5)),
        (t0 + 2000, (14.5, -17.0, 1.0), (1010.0, -493.0, 2290.0))]
-imu = MPU6xxx(ReplayI2C(img, stream, 16 * 12, t_base=t0 - 256, t_step=8, t_span=64))
-imu.compensate(BiasModel(pts))
+model = BiasModel(pts)
 out = array("i", [0] * 7)
-insn("read_compensated", imu.read_compensated, (out,))
-steady = MPU6xxx(ReplayI2C(img, stream, 16 * 12, t_base=t0, t_step=0, t_span=64))
-steady.compensate(BiasModel(pts))
-insn("read_compensated_steady", steady.read_compensated, (out,))
 raw = array("i", [0] * 7)
-insn("read_raw", imu.read_raw, (raw,))
+# TEMP_OUT as each driver reads it (tools/bench/mpu6xxx.py's scenarios), through a bus whose
+# 14-byte read is one C call, as machine.I2C's is
+for name, temps in (("", [t0 - 256 + 8 * i for i in range(64)]),
+                    ("_noisy", [t0 + d for d in %(noise)r]),
+                    ("_steady", [t0])):
+    for avg in (16, 1):
+        d = MPU6xxx(FrameI2C(img, stream, 16 * 12, temps))
+        d.compensate(model)
+        d.temp_avg = avg
+        insn("read_compensated%%s%%s" %% (name, "" if avg == 16 else "_avg1"), d.read_compensated, (out,), 1024)
+insn("read_raw", d.read_raw, (raw,))
+def unpack14(b, o):
+    i = 0
+    while i < 7:
+        v = b[2 * i] << 8 | b[2 * i + 1]
+        if v & 0x8000:
+            v -= 0x10000
+        o[i] = v
+        i += 1
+insn("unpack14", unpack14, (bytearray(14), raw))
+imu = MPU6xxx(ReplayI2C(img, stream, 16 * 12, t_base=t0, t_step=0, t_span=64))
 insn("fifo_packet", imu._cal()._accumulate, (0, 16), 60, 16)
 """
 
@@ -295,9 +310,14 @@ ROWS = (
     ("float_naive", "anchor: naive float 3-axis sample (struct, polynomials per sample)"),
     ("float_careful", "anchor: careful float 3-axis sample (T steady)"),
     ("float_careful_update", "  careful float, its per-temperature update"),
-    ("read_compensated", "MPU-6xxx read_compensated (I2C read, a new T: update + 6 axes)"),
-    ("read_compensated_steady", "  same, temperature unchanged since the last sample"),
-    ("read_raw", "  MPU-6xxx read_raw floor (same I2C read, no compensation)"),
+    ("read_compensated", "MPU-6xxx read_compensated, a new T step every sample (temp_avg=16)"),
+    ("read_compensated_avg1", "  same, temp_avg=1 (update + 6 axes on every sample)"),
+    ("read_compensated_noisy", "  steady die, TEMP_OUT noise of a real log (temp_avg=16)"),
+    ("read_compensated_noisy_avg1", "  same, temp_avg=1"),
+    ("read_compensated_steady", "  temperature steady (temp_avg=16)"),
+    ("read_compensated_steady_avg1", "  same, temp_avg=1"),
+    ("read_raw", "  MPU-6xxx read_raw (the same I2C read, no compensation)"),
+    ("unpack14", "  14-byte unpack floor (7 words, no bus)"),
     ("fifo_packet", "MPU-6xxx bias capture, one FIFO packet"),
     ("mlx_rate", "MLX90609 rate() (TEMPOUT + rate conversions over SPI, update every sample)"),
     ("mlx_rate_every16", "  same, temp_every=16 (TEMPOUT read and update on 1 sample in 16)"),
@@ -321,7 +341,8 @@ def _mpu_inputs():
         stream += s[8:14]
     img = bytearray(sim.regs)
     img[0x3B:0x49] = sim._sample()
-    return dict(img=bytes(img), stream=bytes(stream), t0=sim.temp_raw())
+    from tools.bench.mpu6xxx import NOISE
+    return dict(img=bytes(img), stream=bytes(stream), t0=sim.temp_raw(), noise=NOISE)
 
 
 class _Recorder:
@@ -497,9 +518,14 @@ README_ROWS = (
     ("float_naive", "anchor: naive float 3-axis sample (`struct`, both polynomials per sample)"),
     ("float_careful", "anchor: careful float 3-axis sample (polynomials once per temperature)"),
     ("float_careful_update", "careful float, its per-temperature update"),
-    ("read_compensated", "MPU-6xxx `read_compensated`, a new temperature step (update + 6 axes)"),
-    ("read_compensated_steady", "same, temperature unchanged"),
+    ("read_compensated", "MPU-6xxx `read_compensated`, a new temperature step every sample (`temp_avg=16`)"),
+    ("read_compensated_avg1", "same, `temp_avg=1` (update + 6 axes on every sample)"),
+    ("read_compensated_noisy", "steady die, TEMP_OUT noise of a real log (`temp_avg=16`)"),
+    ("read_compensated_noisy_avg1", "same, `temp_avg=1`"),
+    ("read_compensated_steady", "temperature steady (`temp_avg=16`)"),
+    ("read_compensated_steady_avg1", "same, `temp_avg=1`"),
     ("read_raw", "MPU-6xxx `read_raw` (the same I²C read, no compensation)"),
+    ("unpack14", "the 14-byte unpack floor (7 big-endian words, no bus)"),
     ("fifo_packet", "MPU-6xxx bias capture, one FIFO packet"),
     ("mlx_rate", "MLX90609 `rate()` (TEMPOUT and rate conversions, update every sample)"),
     ("mlx_rate_every16", "same, `temp_every=16`"),
