@@ -184,7 +184,7 @@ def test_precision_on_every_interpreter(interp, kind):
         n += 1
     assert n == 7 * len(sets)
     # single-precision firmware too: the set-up takes each float as the exact binary fraction
-    # it is (fixedpoint._exact_coeffs), so it computes what the float64 reference computes
+    # it is (fixedpoint._exact_mid), so it computes what the float64 reference computes
     bound = EXTREME_BOUND if extreme else RANDOM_BOUND
     assert worst <= bound, (interp.name, kind, worst)
     print("%s %s worst %.4f LSB (bound %.2f)" % (interp.name, kind, worst, bound))

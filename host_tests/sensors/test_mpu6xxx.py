@@ -639,3 +639,10 @@ def test_save_and_reapply_through_the_store(tmp_path):
     back = BiasModel.from_ints(st.load("mpu_tc"))
     for k in range(6):
         assert back.value(k, t) == pytest.approx(model.value(k, t), abs=1 / 16.0)
+
+
+@pytest.mark.parametrize("bad", [float("nan"), float("inf"), -1e12])
+def test_bias_model_refuses_a_value_that_is_no_register_value(bad):
+    # the exact fit takes each value as the binary fraction it is: a NaN or infinity has none
+    with pytest.raises(ValueError, match=r"register values must be finite, \|v\| < 1e9, got"):
+        BiasModel([(100, (1.0, bad, 2.0), (0.0, 0.0, 0.0)), (900, (1.0, 2.0, 2.0), (0.0, 0.0, 0.0))])

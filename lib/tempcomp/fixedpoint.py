@@ -1,8 +1,9 @@
 """Fixed-point temperature compensation core shared by every sensor module.
 
 A sensor's offset and scale are polynomials (degree 0..3) of its own temperature reading ``t``
-(an integer: an ADC code, a register value, millivolts). Set-up turns float coefficients into
-integers once; after that ::
+(an integer: an ADC code, a register value, millivolts). Set-up turns the coefficients (floats, or
+exact ``(num, den)`` pairs of ints) into integers once, in exact arithmetic where the port has long
+ints, so every interpreter gets the same integers from the same coefficients; after that ::
 
     y = out_scale * (raw - offset(t)) / scale(t)
 
@@ -204,7 +205,7 @@ def _check_coeffs(name, coeffs):
     if n < 1 or n > _MAX_DEGREE + 1:
         raise ValueError("%s: degree %d not supported (0..%d)" % (name, n - 1, _MAX_DEGREE))
     for c in coeffs:
-        c = float(c)
+        c = _fl(c)
         if c != c or c in (float("inf"), float("-inf")):
             raise ValueError("%s: coefficient %r is not finite" % (name, c))
 
@@ -226,52 +227,70 @@ class Poly:
         while (1 << h) < half:
             h += 1
         # coefficients of x = (t - mid) / 2**h, so |x| <= 1 over the range
-        fc = [float(c) for c in coeffs]
+        fc = [_fl(c) for c in coeffs]
         fc[0] -= sub
         b = [v / div for v in shift_basis(fc, t_ref, mid)]
-        n = [b[j] * _pow2(h * j) for j in range(len(b))]
-        while len(n) > 1 and n[-1] == 0:
-            n.pop()
-        # |x| <= rho = half / 2**h (between 1/2 and 1): Horner's partial sums
-        # P_k = sum_{j>=k} n_j x**(j-k) (k >= 1, each fed to mul_shift) and the variable part
-        # V = sum_{j>=1} n_j x**j are bounded by their sums of |n_j| rho**(j-k), not of |n_j|:
-        # up to 3 more fraction bits than the plain sum for a cubic over a span just past 2**h
-        rho = half / _pow2(h)
-        deg = len(n) - 1
-        vb = 0.0
-        for k in range(1, deg + 1):
-            pk = 0.0
-            for j in range(deg, k - 1, -1):
-                pk = pk * rho + abs(n[j])
-            vb = max(vb, pk)
-        vsum = 0.0
-        for j in range(deg, 0, -1):
-            vsum = (vsum + abs(n[j])) * rho
-        vb = max(vb, vsum)
-        budget = _pow2(limit) * (1.0 - 1.0 / 1024)  # room for coefficient rounding
-        frac = _fit_frac(abs(n[0]) + vsum, budget, max_frac)
-        # The temperature-dependent part is small next to the constant (a few % of drift), so
-        # it gets its own, finer scale: Horner's few units of rounding then land below one
-        # unit of the result instead of adding up in it.
-        vfrac = _fit_frac(vb, budget, frac + 24)
-        if vfrac < frac:
-            vfrac = frac  # (cannot happen: the variable part is no larger than the whole)
-        self.frac = frac
         self.t_range = (t_lo, t_hi)
         self._mid = mid
         self._h = h
         ex = None
         try:
-            ex = _exact_coeffs(coeffs, t_ref, mid, h, frac, vfrac, deg, div, sub)
+            ex = _exact_mid(coeffs, t_ref, mid, div, sub)
         except (OverflowError, ValueError, TypeError):
             pass  # a build without long ints: the float path below
         if ex is not None:
-            a0x = ex[0]
+            # The same choices and numbers as the float path below, in exact rational arithmetic
+            # (long ints, set-up only): with b_j = B[j] / q, n_j rho**j = b_j half**j, so every
+            # bound is an integer over q. Single-precision floats (the Cortex-M3) and float64 then
+            # give identical integers for identical coefficients.
+            bq, q = ex
+            while len(bq) > 1 and bq[-1] == 0:
+                bq.pop()
+            deg = len(bq) - 1
+            vb = 0
+            for k in range(1, deg + 1):
+                pk = 0
+                for j in range(deg, k - 1, -1):
+                    pk = pk * half + abs(bq[j])
+                vb = max(vb, pk << (h * k))
+            vsum = 0
+            for j in range(deg, 0, -1):
+                vsum = (vsum + abs(bq[j])) * half
+            vb = max(vb, vsum)
+            frac = _fit_frac_q(abs(bq[0]) + vsum, q, limit, max_frac)
+            vfrac = max(frac, _fit_frac_q(vb, q, limit, frac + 24))
+            a0x = _scaled(bq[0], frac + _EXT, q)
             self._a0 = (a0x + (1 << (_EXT - 1))) >> _EXT
             self._a0h = a0x >> _EXT
             self._a0l = a0x & _EXT_MASK
-            self._a = (0,) + tuple(ex[1:])
+            self._a = (0,) + tuple(_scaled(bq[j], h * j + vfrac, q) for j in range(1, deg + 1))
         else:
+            n = [b[j] * _pow2(h * j) for j in range(len(b))]
+            while len(n) > 1 and n[-1] == 0:
+                n.pop()
+            # |x| <= rho = half / 2**h (between 1/2 and 1): Horner's partial sums
+            # P_k = sum_{j>=k} n_j x**(j-k) (k >= 1, each fed to mul_shift) and the variable part
+            # V = sum_{j>=1} n_j x**j are bounded by their sums of |n_j| rho**(j-k), not of |n_j|:
+            # up to 3 more fraction bits than the plain sum for a cubic over a span just past 2**h
+            rho = half / _pow2(h)
+            deg = len(n) - 1
+            vb = 0.0
+            for k in range(1, deg + 1):
+                pk = 0.0
+                for j in range(deg, k - 1, -1):
+                    pk = pk * rho + abs(n[j])
+                vb = max(vb, pk)
+            vsum = 0.0
+            for j in range(deg, 0, -1):
+                vsum = (vsum + abs(n[j])) * rho
+            vb = max(vb, vsum)
+            budget = _pow2(limit) * (1.0 - 1.0 / 1024)  # room for coefficient rounding
+            frac = _fit_frac(abs(n[0]) + vsum, budget, max_frac)
+            # The temperature-dependent part is small next to the constant (a few % of drift), so
+            # it gets its own, finer scale: Horner's few units of rounding then land below one
+            # unit of the result instead of adding up in it. (vfrac < frac cannot happen: the
+            # variable part is no larger than the whole.)
+            vfrac = max(frac, _fit_frac(vb, budget, frac + 24))
             self._a0 = int(round(n[0] * _pow2(frac)))
             # the constant again with _EXT more bits, as a0h + a0l / 2**_EXT
             # (0 <= a0l < 2**_EXT), for eval_ext(); two small ints
@@ -284,6 +303,7 @@ class Poly:
             self._a0h = a0h
             self._a0l = a0l
             self._a = (0,) + tuple(int(round(v * _pow2(vfrac))) for v in n[1:])
+        self.frac = frac
         self._deg = deg
         # eval()'s mul_shift(acc, x, h) inline, one form for every h: x << (14 - h) when
         # h < 14 gives floor(acc * x * 2**(14-h) / 2**14) = floor(acc * x / 2**h) with
@@ -358,41 +378,98 @@ def _exact_float(x):
     return int(x), e
 
 
+def _gcd(a, b):
+    a = abs(a)
+    b = abs(b)
+    while b:
+        a, b = b, a % b
+    return a
+
+
+def _ratio(c):
+    # a coefficient as an exact (num, den) pair, den > 0: a float is the binary fraction it is
+    if type(c) is tuple:
+        return c
+    if type(c) is int:
+        return (c, 1)
+    m, e = _exact_float(c)
+    return (m, 1 << -e)
+
+
+def _fl(c):
+    """Float value of a coefficient: a number, or an exact pair (num, den) of ints, den > 0.
+
+    Every coefficient the set-up takes may be such a pair (BiasModel's exact fits): the integers
+    are then computed from the rational number itself, not from its rounding to this port's
+    floats."""
+    if type(c) is not tuple:
+        return float(c)
+    n, d = c
+    while d >> 80 and abs(n) >> 80:
+        n >>= 16  # single-precision floats end at 2**128; 64 bits of each keep the ratio
+        d >>= 16
+    return n / d
+
+
 def _round_div(num, den):
     # round(num / den) for den > 0, halves up; exact on ints of any size
     return (2 * num + den) // (2 * den)
 
 
-def _exact_coeffs(coeffs, t_ref, mid, h, frac, vfrac, deg, div, sub):
-    """The fixed-point coefficients computed exactly from the floats as given (set-up).
+def _scaled(num, k, den):
+    # round(num * 2**k / den) for den > 0, any int k
+    return _round_div(num << k, den) if k >= 0 else _round_div(num, den << -k)
+
+
+def _fit_frac_q(num, den, limit, max_frac):
+    # _fit_frac for the exact total num / den (den > 0) against budget 2**limit * 1023 / 1024:
+    # the largest f <= max_frac with num * 2**f * 1024 <= den * 1023 * 2**limit
+    if num <= 0:
+        return max_frac
+    f = max_frac
+    a = num * 1024
+    b = (den * 1023) << limit
+    if f >= 0:
+        a <<= f
+    else:
+        b <<= -f
+    while a > b:
+        if f > 0:
+            a >>= 1  # a = num * 1024 * 2**f: even, so this is exact
+        else:
+            b <<= 1
+        f -= 1
+    return f
+
+
+def _exact_mid(coeffs, t_ref, mid, div, sub):
+    """The polynomial's coefficients in powers of (t - mid), minus sub, over div, as exact
+    rationals B[j] / q (set-up, long ints).
 
     Float steps in single precision (the Cortex-M3 firmware) err by 2**-24 relative: dividing
     by out_scale, re-expanding about the range's middle. Here every float is taken as the exact
-    binary fraction it is and the rest is integer arithmetic (long ints, set-up only): [a0 with
-    _EXT more bits than frac, then a_1..a_deg at vfrac]. Returns None where t_ref is no int.
+    binary fraction it is, a pair (num, den) as the number it is, and the rest is integer
+    arithmetic. Returns None where t_ref is no int.
     """
     if t_ref != int(t_ref):
         return None
     d = mid - int(t_ref)
-    ms = [_exact_float(c) for c in coeffs]
-    md, ed = _exact_float(div)
-    if md <= 0:
+    rs = [_ratio(c) for c in coeffs]
+    dn, dd = _ratio(div)
+    if dn <= 0:
         return None
-    E = min([e for _, e in ms] + [0])
-    M = [m << (e - E) for m, e in ms]
-    M[0] -= sub << -E
+    q = 1
+    for _, r in rs:
+        q = q * r // _gcd(q, r)
+    m = [c * (q // r) for c, r in rs]
+    m[0] -= sub * q
     out = []
-    for j in range(deg + 1):
-        # coefficient j of powers of (t - mid), times 2**-E: sum_i M_i C(i, j) d**(i - j)
+    for j in range(len(m)):
         bj = 0
-        for i in range(j, len(M)):
-            bj += M[i] * _binomial(i, j) * d ** (i - j)
-        k = E + h * j + (frac + _EXT if j == 0 else vfrac) - ed
-        if k >= 0:
-            out.append(_round_div(bj << k, md))
-        else:
-            out.append(_round_div(bj, md << -k))
-    return out
+        for i in range(j, len(m)):
+            bj += m[i] * _binomial(i, j) * d ** (i - j)
+        out.append(bj * dd)
+    return out, q * dn
 
 
 def quadratic_through(p0, p1, p2, t_ref=0):
@@ -422,7 +499,7 @@ class Compensator:
     """out_scale * (raw - offset(t)) / scale(t) for N axes sharing one temperature reading.
 
     offsets, scales: one coefficient sequence per axis (powers of t - t_ref; raw LSB and
-    raw LSB per physical unit). t_cal: calibrated span of the reading; t_in: the readings the
+    raw LSB per physical unit), each a number or an exact (num, den) pair of ints. t_cal: calibrated span of the reading; t_in: the readings the
     bounds are proven for (default: t_cal with CLAMP, t_cal widened by half its span with
     EXTRAPOLATE). raw_range: the raw codes (at most 65536 of them, signed or unsigned).
     """
@@ -486,8 +563,8 @@ class Compensator:
         for k in range(n):
             _check_coeffs("offset[%d]" % k, offsets[k])
             _check_coeffs("scale[%d]" % k, scales[k])
-            o = [float(c) for c in offsets[k]]
-            sp = Poly([float(c) for c in scales[k]], ev, t_ref, limit=_DIV_BITS, div=out_scale)
+            o = list(offsets[k])  # floats or exact (num, den) pairs: Poly takes either as it is
+            sp = Poly(list(scales[k]), ev, t_ref, limit=_DIV_BITS, div=out_scale)
             s_min, s_max = sp.extrema()
             if not s_min > 0:
                 raise ValueError(

@@ -1,6 +1,6 @@
 """An MPU's software offset(T) at boot, from the integers set-up computed at calibration.
 
-``imu.compensate(model)`` turns a ``BiasModel`` into two fixed-point Compensators: float fits,
+``imu.compensate(model)`` turns a ``BiasModel`` into two fixed-point Compensators: exact fits,
 basis shifts and bound proofs in ``tempcomp.fixedpoint`` (about 25 KB of heap from ``.mpy``).
 All they leave for the per-sample path is a few dozen integers; ``tempcomp.mpu6xxx_tc.compiled``
 exports those once the model is in use, the session saves them as record ``mpu_tcc`` next to

@@ -4,6 +4,9 @@ Capture ``bias_point()`` at rest at two or more temperatures; each gives the raw
 and the offset-register values that would zero the bias there. ``BiasModel`` fits, per
 axis, a polynomial of those register values in the raw temperature (exact through 1..3
 points, least-squares quadratic through more) and evaluates it with the fixed-point core.
+The fit and the fixed-point set-up are exact rational arithmetic (long ints), so one
+``to_ints()`` record gives the same integers on every interpreter, single-precision
+firmware included; a build without long ints fits in floats.
 Use it either way:
 
 * hardware: ``imu.follow(model, step_c100=50)`` re-writes the offset registers whenever the
@@ -21,7 +24,15 @@ Usage::
     model = BiasModel.from_ints(store.load("mpu_tc"))
 """
 
-from tempcomp.fixedpoint import CLAMP, EXTRAPOLATE, Compensator, quadratic_through
+from tempcomp.fixedpoint import (
+    CLAMP,
+    EXTRAPOLATE,
+    Compensator,
+    _fl,
+    _gcd,
+    _ratio,
+    quadratic_through,
+)
 
 _FRAC = 16  # to_ints keeps register values in 1/16 LSB
 
@@ -48,6 +59,42 @@ def _lsq_quadratic(ts, ys, t_ref):
                 for j in range(c, 4):
                     m[r][j] -= f * m[c][j]
     return [m[0][3] / m[0][0], m[1][3] / m[1][1] / w, m[2][3] / m[2][2] / (w * w)]
+
+
+def _det(a):
+    if len(a) == 1:
+        return a[0][0]
+    if len(a) == 2:
+        return a[0][0] * a[1][1] - a[0][1] * a[1][0]
+    return (a[0][0] * (a[1][1] * a[2][2] - a[1][2] * a[2][1]) - a[0][1] * (a[1][0] * a[2][2] - a[1][2] * a[2][0])
+            + a[0][2] * (a[1][0] * a[2][1] - a[1][1] * a[2][0]))
+
+
+def _exact_fit(ts, ys, t_ref):
+    # _fit in exact rationals: the least-squares polynomial of degree min(n - 1, 2) (through the
+    # points when n <= 3) by Cramer's rule on the integer normal equations in u = t - t_ref, each
+    # y taken as the binary fraction it is. Returns (num, den) pairs, den > 0, of powers of u.
+    # Long ints (u**4 * n alone passes 2**31): OverflowError on a build without them.
+    rs = [_ratio(y) for y in ys]
+    den = max(r for _, r in rs)  # powers of two (or 1): the largest is a common multiple
+    yi = [v * (den // r) for v, r in rs]
+    us = [t - t_ref for t in ts]
+    m = min(len(us), 3)
+    s = [sum(u**k for u in us) for k in range(2 * m - 1)]
+    a = [[s[i + j] for j in range(m)] for i in range(m)]
+    r = [sum(u**i * y for u, y in zip(us, yi)) for i in range(m)]
+    det = _det(a)
+    if det == 0:
+        raise ValueError("bias points do not determine a quadratic")
+    out = []
+    for i in range(m):
+        num = _det([row[:i] + [r[k]] + row[i + 1:] for k, row in enumerate(a)])
+        d = det * den
+        if d < 0:
+            num, d = -num, -d
+        g = _gcd(num, d)
+        out.append((num // g, d // g))
+    return out
 
 
 def _fit(ts, ys, t_ref):
@@ -111,6 +158,9 @@ class BiasModel:
         for p in pts:
             if len(p[1]) != 3 or len(p[2]) != 3:
                 raise ValueError("a bias point is (t_raw, (gx, gy, gz), (ax, ay, az)), got %r" % (p,))
+            for v in tuple(p[1]) + tuple(p[2]):
+                if not -1e9 < float(v) < 1e9:  # NaN fails this too
+                    raise ValueError("a bias point's register values must be finite, |v| < 1e9, got %r" % (p,))
         if policy not in (CLAMP, EXTRAPOLATE):
             raise ValueError("policy must be CLAMP or EXTRAPOLATE")
         self.points = pts
@@ -118,7 +168,14 @@ class BiasModel:
         self.t_ref = ts[len(ts) // 2]
         self.t_cal = (ts[0], ts[-1]) if len(ts) > 1 else (ts[0] - 1, ts[0] + 1)
         ys = [[float(p[1][k]) for p in pts] for k in range(3)] + [[float(p[2][k]) for p in pts] for k in range(3)]
-        self.coeffs = [_fit(ts, y, self.t_ref) for y in ys]
+        try:
+            # exact: the fixed-point set-up then gives the same integers on every interpreter, single-
+            # precision floats (Cortex-M3) or float64 (the host), from the same points (to_ints)
+            self._q = [_exact_fit(ts, y, self.t_ref) for y in ys]
+            self.coeffs = [[_fl(c) for c in q] for q in self._q]
+        except OverflowError:  # a build without long ints: in floats
+            self._q = None
+            self.coeffs = [_fit(ts, y, self.t_ref) for y in ys]
         self._hw = None  # the 6-axis Compensator of targets(): built on first use (docs/ram.md)
 
     def _hw_comp(self):
@@ -129,7 +186,7 @@ class BiasModel:
         hw = self._hw
         if hw is None:
             hw = self._hw = Compensator(
-                [[-c for c in cs] for cs in self.coeffs],
+                [self.offset_poly(k, 0, 1) for k in range(6)],
                 [[1.0]] * 3 + [[2.0]] * 3,
                 self.t_cal,
                 out_scale=1.0,
@@ -157,9 +214,19 @@ class BiasModel:
         return (g, a)
 
     def offset_poly(self, axis, base, k):
-        """Output offset vs temperature when ``base`` is held: (base - value(t)) * k LSB."""
-        c = [-v * k for v in self.coeffs[axis]]
-        c[0] += base * k
+        """Output offset vs temperature when ``base`` is held: (base - value(t)) * k LSB.
+
+        Coefficients of powers of t - t_ref for ``fixedpoint.Compensator``: exact (num, den)
+        pairs of ints where the interpreter has long ints, floats otherwise."""
+        q = self._q
+        if q is None:
+            c = [-v * k for v in self.coeffs[axis]]
+            c[0] += base * k
+            return c
+        kn, kd = _ratio(k)
+        q = q[axis]
+        c = [(-v * kn, d * kd) for v, d in q]
+        c[0] = ((base * q[0][1] - q[0][0]) * kn, q[0][1] * kd)
         return c
 
     def to_ints(self):
