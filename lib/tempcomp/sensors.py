@@ -38,12 +38,8 @@ MPU_TCC = "mpu_tcc"  # mpu_tc's set-up for the saved ranges and offsets (tempcom
 ADXRS = "adxrs"
 ALL = (MLX, MPU, ADXRS)
 
-ADXRS_NULL_MV = 2500.0  # datasheet null of an ADXRS6xx at 5 V: what an uncalibrated reading assumes
 _VT_MIN_MV = 1000  # a temperature output outside this window means no analog gyro is wired
 _VT_MAX_MV = 4000
-_GYRO_REG_OUT = 4  # one gyro offset register LSB moves the +-250 dps output by 4 LSB
-_GYRO_LSB_DPS = 131.0
-_CHECK_MS = 1000  # read() re-checks the MPU's offset registers at most this often
 
 
 class Sensors:
@@ -64,14 +60,13 @@ class Sensors:
         """Names of the parts that answered."""
         return [n for n, p in ((MLX, self.mlx), (MPU, self.mpu), (ADXRS, self.adxrs)) if p is not None]
 
+    # the REPL read-outs (floats, formatting) live in tempcomp.sensors_show, loaded on first use:
+    # a board that only reads compensated samples never holds them (docs/ram.md)
     def temp_c(self):
         """Board temperature, degC (float): the MPU's sensor, else the MLX90609's TEMPOUT."""
-        if self.mpu is not None:
-            return self.mpu.temp_c100() / 100.0
-        mlx = self.mlx
-        if mlx is not None and mlx.table is not None:
-            return mlx_degc(mlx.table.tc, mlx.tempout_mv())
-        return None
+        from tempcomp.sensors_show import temp_c
+
+        return temp_c(self)
 
     def read(self, n=16):
         """Mean of n samples: dict of (compensated, uncompensated) deg/s per axis, and degC.
@@ -80,71 +75,16 @@ class Sensors:
         with its offset registers at zero, the MLX90609's code against its nominal 2.5 V
         zero and scale, the analog gyro's voltage against the datasheet null and scale.
         """
-        out = {"temp_c": self.temp_c()}  # type: dict
-        mpu = self.mpu
-        if mpu is not None:
-            # compensated: offset(T) in software when a BiasModel is in use, else the output
-            # with the calibrated offset registers (room-temperature calibration only)
-            b = self._buf
-            comp = [0.0, 0.0, 0.0]
-            raw = [0, 0, 0]
-            if mpu._target is not None:  # offsets written here: keep them (ICM-20602 trim)
-                mpu.check(every_ms=_CHECK_MS)
-            regs = mpu.offsets()[0]
-            tc = mpu._cg is not None  # software offset(T): a BiasModel, or its mpu_tcc record
-            for _ in range(n):
-                if tc:
-                    mpu.read_compensated(b)
-                    for k in range(3):
-                        comp[k] += b[3 + k]
-                mpu.read_raw(b)
-                for k in range(3):
-                    if not tc:
-                        comp[k] += b[4 + k] * 1000 / _GYRO_LSB_DPS
-                    raw[k] += b[4 + k] - _GYRO_REG_OUT * regs[k]
-            for k in range(3):
-                out["mpu_g" + "xyz"[k]] = (comp[k] / (1000.0 * n), raw[k] / (_GYRO_LSB_DPS * n))
-        mlx = self.mlx
-        if mlx is not None and mlx.table is not None:
-            s0 = mlx.table.s0("digital")
-            zero = (2500 - 400) * 12 / 25.0  # the code of a 2.5 V output
-            sc = sr = 0
-            for _ in range(n):
-                sc += mlx.rate()
-                sr += mlx.rate_code()
-            out["mlx"] = (sc / (float(mlx.out_scale) * n), (sr / n - zero) / s0)
-        if self.adxrs is not None:
-            a = self.adxrs
-            sc = sr = 0
-            for _ in range(n):
-                if a.comp is not None:
-                    sc += a.rate()
-                sr += a.read_codes()[1]
-            mv = sr * a.mv_per_code / n
-            c = sc / (float(a.out_per_dps) * n) if a.comp is not None else None
-            out["adxrs"] = (c, (mv - ADXRS_NULL_MV) / self.adxrs_mv_per_dps)
-        return out
+        from tempcomp.sensors_show import read
+
+        return read(self, n)
 
     def show(self, n=16):
         """Print temperature and compensated (uncompensated) rates, deg/s; returns None (the REPL
         would echo a returned dict after the line; ``read(n)`` gives the values)."""
-        r = self.read(n)
-        parts = []
-        t = r.get("temp_c")
-        if t is not None:
-            parts.append("%.2f degC" % t)
-        for key in ("mpu_gx", "mpu_gy", "mpu_gz", "mlx", "adxrs"):
-            if key in r:
-                c, u = r[key]
-                parts.append("%s %s (raw %+.3f)" % (key, "--" if c is None else "%+.3f" % c, u))
-        print("  ".join(parts))
+        from tempcomp.sensors_show import show
 
-
-def mlx_degc(tc, tempout_mv):
-    """degC from TEMPOUT (mV) through the table's TC at -40/25/85 degC, piecewise linear."""
-    if tempout_mv <= tc[1]:
-        return 25.0 + 65.0 * (tempout_mv - tc[1]) / (tc[1] - tc[0])
-    return 25.0 + 60.0 * (tempout_mv - tc[1]) / (tc[2] - tc[1])
+        show(self, n)
 
 
 def open_sensors(board, which=ALL):
