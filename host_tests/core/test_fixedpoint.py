@@ -89,6 +89,11 @@ CONFIGS = [
     ("accel_mg", [[-20.0, 1.0, 0.01]], [[16.384, -1.6e-3, 1e-6]], (-40, 105), 1.0, (-32768, 32767), fp.EXTRAPOLATE),
     ("max_gain", [[0.0, 0.5]], [[1.0 / 250.0]], (-32768, 32767), 1.0, (-32768, 32767), fp.CLAMP),
     ("wide_t", [[65000.0, 0.01]], [[1.01, 1e-6]], (-32768, 32767), 1.0, (0, 65535), fp.CLAMP),
+    # a half-span just past a power of two and a small constant: Horner's partial sums above the
+    # whole (Poly), for the offset and for the scale
+    ("steep_line", [[0.0, 15.0]], [[131.0, 0.03]], (-1030, 1030), 1000.0, (-32768, 32767), fp.CLAMP),
+    ("steep_square", [[0.0, 0.0, 0.028]], [[131.0, 0.0, 4e-5]], (-1030, 1030), 1000.0, (-32768, 32767), fp.CLAMP),
+    ("steep_cube", [[0.0, 0.0, 0.0, 2.7e-5]], [[16.4, 0.0, 0.0, 3e-9]], (-1030, 1030), 1.0, (-32768, 32767), fp.CLAMP),
 ]
 
 
@@ -372,3 +377,21 @@ def test_three_axis_burst_path_stays_within_bounds_at_the_corners():
                 buf += (r & 0xFFFF).to_bytes(2, "big")
             comp.apply_be16(buf, out)
             assert out == [comp.apply(a, 0), comp.apply(b, 1), comp.apply(c, 2)]
+
+
+@pytest.mark.parametrize("coeffs", [[0.0, 15.0], [3.0, 15.0, 0.002], [0.0, 0.0, 0.028], [0.5, 0.0, 0.0, 2.7e-5]])
+def test_horner_partial_sums_keep_their_bound_when_the_range_just_passes_a_power_of_two(coeffs):
+    # t range -1030..1030: half-span 1030 just past 2**10, so rho = 1030 / 2**11 ~ 1/2 and
+    # Horner's partial sum P_k can be V / rho**k, up to 8x the variable part V. With a small
+    # constant (an MPU offset held near its model), V is most of the whole: sized for the whole
+    # alone, a quadratic's a_2 reached 2**30 (a long int: allocation per update), and an
+    # mpu_tcc record's Horner coefficients passed the 2**28 its boot check allowed
+    p = fp.Poly(coeffs, (-1030, 1030))
+    assert max(abs(a) for a in p._a) <= 1 << 29, p._a
+    for t in (-1030, -1029, 0, 1029, 1030):
+        acc = p._a[p._deg]
+        for j in range(p._deg - 1, -1, -1):  # every Horner step, at the range's ends too
+            assert abs(acc) <= 1 << 29 and abs(acc * t) >> p._h <= 2 ** (28 + 2 / 3), (t, j, acc)
+            acc = fp.mul_shift(acc, t - p._mid, p._h) + (p._a[j] if j else 0)
+        want = sum(c * t**i for i, c in enumerate(coeffs)) * 2.0**p.frac
+        assert abs(p.eval(t) - want) <= 2, (t, p.eval(t), want)

@@ -11,6 +11,7 @@ import sys
 
 import interps
 import pytest
+from mpu_models import random_cases
 from paths import REPO
 
 from tempcomp.mpu6xxx import MPU6xxx
@@ -114,8 +115,8 @@ def test_vm_integers_match_cpython(vm_out, interp):
 
 
 # the set-up on each interpreter for models it was not written around: every integer the
-# software path keeps (the mpu_tcc record), the EXTRAPOLATE policy's per-temperature numbers
-# beyond the span and the hardware path's register targets
+# software path keeps (the mpu_tcc record, then resumed by the boot form), the EXTRAPOLATE
+# policy's per-temperature numbers beyond the span and the hardware path's register targets
 SETUP = r"""
 from tempcomp.mpu6xxx import MPU6xxx
 from tempcomp.mpu6xxx_tc import BiasModel, compiled
@@ -127,7 +128,13 @@ for i, (mi, fs, g, a, ts) in enumerate(CASES_):
     sim.regs[0x1B] = fs[0]
     sim.regs[0x1C] = fs[1]
     imu.apply(g, a)
-    print("TCC %d %s" % (i, " ".join([str(v) for v in compiled(imu, mi)])))
+    rec = compiled(imu, mi)
+    print("TCC %d %s" % (i, " ".join([str(v) for v in rec])))
+    imu.compensate(rec, mi)  # the boot form, which refuses a record outside its bounds
+    for t in ts:
+        imu._ca.update(t)
+        imu._cg.update(t)
+        print("RES %d %d %s" % (i, t, " ".join([str(v) for v in list(imu._ca._p3) + list(imu._cg._p3)])))
     model = BiasModel.from_ints(mi, 1)
     imu.compensate(model)
     for t in ts:
@@ -136,40 +143,6 @@ for i, (mi, fs, g, a, ts) in enumerate(CASES_):
         tg = model.targets(t)
         print("EXT %d %d %s" % (i, t, " ".join([str(v) for v in list(imu._ca._p3) + list(imu._cg._p3) + list(tg[0]) + list(tg[1])])))
 """
-
-
-def random_cases(n, seed):
-    # mpu_tc records of 1..6 points over spans from 40 raw counts to most of the int16 range,
-    # register values drifting as a quadratic plus capture noise, in 1/16 LSB; offsets held near
-    # the model's middle value; every gyro and accel range
-    import random
-
-    rng = random.Random(seed)
-    cases = []
-    while len(cases) < n:
-        npts = rng.randint(1, 6)
-        span = rng.choice([40, 700, 3000, 12000, 30000])
-        lo = rng.randint(-20000, 15000 - span)
-        ts = sorted(rng.sample(range(lo, lo + span + 1), npts))
-        mid = (ts[0] + ts[-1]) // 2
-        ints = [npts]
-        rows = [[t] for t in ts]
-        bases = []
-        for k in range(6):
-            base = rng.uniform(-600, 600) if k < 3 else rng.uniform(-6000, 6000)
-            slope = rng.uniform(-1, 1) * (20.0 if k < 3 else 60.0) / max(span, 1)
-            curv = rng.uniform(-1, 1) * (10.0 if k < 3 else 30.0) / max(span, 1) ** 2
-            for r, t in zip(rows, ts):
-                v = base + slope * (t - mid) + curv * (t - mid) ** 2 + rng.gauss(0, 0.3)
-                r.append(int(round(v * 16)))
-            bases.append(int(round(base)) + rng.randint(-40, 40))
-        for r in rows:
-            ints += r
-        w = max(ts[-1] - ts[0], 2)
-        probe = [ts[0] - w, ts[0] - 1, mid, ts[-1] + 1, ts[-1] + w // 3]
-        fs = (8 * rng.randint(0, 3), 8 * rng.randint(0, 3))
-        cases.append((ints, fs, bases[:3], bases[3:], probe))
-    return cases
 
 
 def test_setup_integers_identical_on_every_interpreter(interp):
@@ -187,6 +160,12 @@ def test_setup_integers_identical_on_every_interpreter(interp):
         sim.regs[0x1C] = fs[1]
         imu.apply(g, a)
         assert next(lines) == "TCC %d %s" % (i, " ".join(str(v) for v in compiled(imu, mi))), (interp.name, i)
+        imu.compensate(BiasModel.from_ints(mi))  # CPython's set-up path: what the resumed record gives
+        for t in ts:
+            imu._ca.update(t)
+            imu._cg.update(t)
+            exp = list(imu._ca._p3) + list(imu._cg._p3)
+            assert next(lines) == "RES %d %d %s" % (i, t, " ".join(str(v) for v in exp)), (interp.name, i, t)
         model = BiasModel.from_ints(mi, 1)
         imu.compensate(model)
         for t in ts:

@@ -23,8 +23,10 @@ Two stages, with their bounds (B = 2**30 is the small-int limit):
 
 * Per temperature (``update``): each polynomial is evaluated by Horner's rule in the
   normalised variable x = (t - t_mid) / 2**h, |x| <= 1, with coefficients scaled so that the
-  sum of their magnitudes is <= 2**28 (2**27 for scales); every partial sum is then <= 2**28.
-  A product acc*X is split into 14-bit limbs (``mul_shift``): |limb * X| <= 2**14 * 2**15.
+  sum of their magnitudes is <= 2**28 (2**27 for scales); a partial sum of Horner's rule is
+  then <= 2**28 too, or up to 2**29 where the span just passes a power of two (Poly: then
+  |acc * x| <= 2**(28 + 2/3)). A product acc*X is split into 14-bit limbs (``mul_shift``):
+  |limb * X| <= 2**14 * 2**15, or <= 2**(29 + 2/3) for those partial sums.
   The gain out_scale/scale(t) and the offset term are obtained by long division whose
   remainder is < 2**27, shifted 3 bits a step: < 2**30.
 * Per sample (``apply``): r = raw - raw_mid with |r| <= 2**K (K <= 15: the raw range's
@@ -258,7 +260,10 @@ class Poly:
                 vsum = (vsum + abs(bq[j])) * half
             vb = max(vb, vsum)
             frac = _fit_frac_q(abs(bq[0]) + vsum, q, limit, max_frac)
-            vfrac = max(frac, _fit_frac_q(vb, q, limit, frac + 24))
+            vfrac = _fit_frac_q(vb, q, limit, frac + 24)
+            if vfrac < frac:  # a partial sum above the whole (below)
+                frac = min(frac, vfrac + 1)
+                vfrac = frac
             a0x = _scaled(bq[0], frac + _EXT, q)
             self._a0 = (a0x + (1 << (_EXT - 1))) >> _EXT
             self._a0h = a0x >> _EXT
@@ -288,9 +293,16 @@ class Poly:
             frac = _fit_frac(abs(n[0]) + vsum, budget, max_frac)
             # The temperature-dependent part is small next to the constant (a few % of drift), so
             # it gets its own, finer scale: Horner's few units of rounding then land below one
-            # unit of the result instead of adding up in it. (vfrac < frac cannot happen: the
-            # variable part is no larger than the whole.)
-            vfrac = max(frac, _fit_frac(vb, budget, frac + 24))
+            # unit of the result instead of adding up in it. The variable part V is no larger
+            # than the whole, but a partial sum can be: P_k <= V / rho**k, when the range just
+            # passes a power of two (rho ~ 1/2) and the constant is small (an MPU offset held
+            # near the model). P_k <= 2 * 2**limit is kept, lowering the constant's scale if
+            # need be: |P_k * (t - mid)| / 2**h <= min(2 rho, rho**(1-k)) * 2**limit, at most
+            # 2**(limit + 2/3) (k = 3), so mul_shift's limb products stay < 2**30 (module notes)
+            vfrac = _fit_frac(vb, budget, frac + 24)
+            if vfrac < frac:
+                frac = min(frac, vfrac + 1)
+                vfrac = frac
             self._a0 = int(round(n[0] * _pow2(frac)))
             # the constant again with _EXT more bits, as a0h + a0l / 2**_EXT
             # (0 <= a0l < 2**_EXT), for eval_ext(); two small ints
@@ -307,7 +319,7 @@ class Poly:
         self._deg = deg
         # eval()'s mul_shift(acc, x, h) inline, one form for every h: x << (14 - h) when
         # h < 14 gives floor(acc * x * 2**(14-h) / 2**14) = floor(acc * x / 2**h) with
-        # |x| <= 2**14; |acc| <= 2**28, so each limb product <= 2**29 and the sum < 2**30
+        # |x| <= 2**14; |acc| <= 2**29, each limb product <= 2**(29 + 2/3) (module notes): the sum < 2**30
         self._xl = _LIMB - h if h < _LIMB else 0
         self._xs = h - _LIMB if h >= _LIMB else 0
         self._vs = vfrac - frac
@@ -810,7 +822,7 @@ class Compensator:
             if f:
                 acc = q[j + f]
                 while True:
-                    # |acc| <= 2**28, |x| <= 2**15: each product <= 2**29, the sum < 2**30
+                    # |acc| <= 2**29, each product <= 2**(29 + 2/3) (module notes): the sum < 2**30
                     acc = ((acc >> _LIMB) * x + (((acc & _LIMB_MASK) * x) >> _LIMB)) >> hs
                     f -= 1
                     if not f:

@@ -91,7 +91,7 @@ class _State:
             if f:
                 acc = v[j + f]
                 while True:
-                    # |acc| <= 2**28, |x| <= 2**15: each product <= 2**29, the sum < 2**30
+                    # |acc| <= 2**29, |acc * x| >> h <= 2**(28 + 2/3) (fixedpoint: Poly): < 2**30
                     acc = ((acc >> _LIMB) * x + (((acc & _LIMB_MASK) * x) >> _LIMB)) >> hs
                     f -= 1
                     if not f:
@@ -115,9 +115,8 @@ def resume(imu, v, model=None):
               and v[i] <= v[i + 1] and v[i + _HALF] == 1 << (s - 1))
         for j in range(3):
             ok = ok and 0 <= v[i + _FD + j] <= 3
-        for j in range(12):  # Horner's constant <= 2**29, the others <= 2**28
-            lim = 1 << 29 if j % 4 == 0 else 1 << 28
-            ok = ok and -lim <= v[i + _FQ + j] <= lim
+        for j in range(12):  # Horner's coefficients <= 2**29 (fixedpoint: Poly)
+            ok = ok and -(1 << 29) <= v[i + _FQ + j] <= 1 << 29
         i += _PER
     if not ok:
         raise ValueError("mpu_tcc: not a compiled offset(T) record")
