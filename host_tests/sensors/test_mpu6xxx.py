@@ -8,6 +8,7 @@ step. Both are added where a residual bias is checked, with the numbers stated.
 """
 
 import math
+import random
 import warnings
 
 import pytest
@@ -535,7 +536,7 @@ def test_read_compensated_applies_the_mean_of_each_block_of_temperature_readings
     imu.temp_avg = avg
     ref = MPU6xxx(SimI2C({0x68: MPU6xxxSim("MPU-6500", seed=11)}))
     ref.compensate(BiasModel(pts))  # its Compensators, moved to the temperature expected here
-    rng = __import__("random").Random(3)
+    rng = random.Random(3)
     out = [0] * 7
     block = []
     applied = None

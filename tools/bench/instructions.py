@@ -329,22 +329,6 @@ ROWS = (
 )
 
 
-def _mpu_inputs():
-    from tools.sim.mpu6xxx_sim import MPU6xxxSim
-    sim = MPU6xxxSim("MPU-6500", seed=5)
-    sim.place("+z")
-    sim.regs[0x6B] = 0x01
-    stream = bytearray()
-    for _ in range(16):
-        s = sim._sample()
-        stream += s[0:6]
-        stream += s[8:14]
-    img = bytearray(sim.regs)
-    img[0x3B:0x49] = sim._sample()
-    from tools.bench.mpu6xxx import NOISE
-    return dict(img=bytes(img), stream=bytes(stream), t0=sim.temp_raw(), noise=NOISE)
-
-
 class _Recorder:
     def __init__(self, spi):
         self.spi = spi
@@ -412,10 +396,12 @@ def _adxrs_inputs():
 def scripts():
     """(name, device script, lines its output must hold) triples; each script runs after a soft
     reset, so each has the heap to itself."""
+    from tools.bench.mpu6xxx import replay_inputs
+
     mlx, mlx_expect = _mlx_inputs()
     return (
         ("core", HARNESS + CORE % dict(offs=OFFS, scs=SCS, t_cal=T_CAL, batch=BATCH), ()),
-        ("mpu6xxx", HARNESS + MPU % _mpu_inputs(), ()),
+        ("mpu6xxx", HARNESS + MPU % replay_inputs(), ()),
         ("mlx90609", HARNESS + MLX % mlx, mlx_expect),
         ("adxrs+an12760", HARNESS + ADXRS % _adxrs_inputs(), ()),
     )
