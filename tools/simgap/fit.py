@@ -1,8 +1,17 @@
-"""One least-squares fit of the sim plus a set of effect shapes on the training log, and its
-residuals on held-out data: the training log's held-out segments (each predicted by a fit on
-the other segments) and, when given, the withheld log (predicted by the fit on all of it)."""
+"""One generalised least-squares fit of the sim plus a set of effect shapes on the training log
+under the axis's noise model, and its residuals on held-out data: the training log's held-out
+segments (one-step-ahead innovations, each segment predicted by a fit on the others) and, when
+given, the withheld log (predicted by the fit on all of it).
+
+Under white noise the fit is ordinary least squares. Under a wandering bias (random walk,
+Gauss-Markov) every column is passed through the noise model's whitening filter (the
+steady-state Kalman innovations, noise.whiten) and the fit is least squares on the filtered
+columns, which is exact GLS, O(n k). The filter runs through the held-out segment (the
+innovations there are one-step-ahead predictions from everything before), and the rows just
+after it, whose filtered values still carry its data, are left out of that segment's fit."""
 import numpy as np
 
+from . import noise as N
 from . import prep
 from .effects import BY_NAME
 from .features import Context, Prepared
@@ -51,6 +60,37 @@ class Problem:
             keep[:] = True      # nothing inside: a plateau log; segments judge as they are
         self.cv_keep = keep
         self.cv_fold = self.fold_m[keep]
+        # Noise model per axis (white until the selection estimates one) and the filtered
+        # designs it implies, cached for the current state's blocks.
+        self.noise = {a: N.NoiseModel(1.0, dt=self.ctx.dt) for a in range(3)}
+        self._seg_t = self._segment_starts(self.train)
+        self._seg_w = self._segment_starts(self.withheld) if self.withheld is not None else None
+        self._wcache = {}
+
+    def _segment_starts(self, p):
+        """Start rows (in masked-row order) of the log's contiguous stretches."""
+        m = p.mask
+        seg = prep.segments(p.log)
+        pos = np.cumsum(m) - 1              # masked index of each row
+        out = []
+        for s in seg:
+            k = s
+            while k < len(m) and not m[k]:
+                k += 1
+            if k < len(m):
+                out.append(int(pos[k]))
+        return np.unique(np.array(out or [0], int))
+
+    def set_noise(self, axis, model):
+        self.noise[axis] = model
+        self._wcache = {k: v for k, v in self._wcache.items() if k[0] != axis}
+
+    def starts(self, p, axis, model=None):
+        """Filter restarts (masked-row indices) on prepared log p under the axis's noise model."""
+        model = model or self.noise[axis]
+        seg = self._seg_t if p is self.train else self._seg_w
+        t = p.log.t[p.mask]
+        return N.restarts(t, self.ctx.dt, seg, model)
 
     def _target(self, p):
         if self.model is None:
@@ -67,58 +107,113 @@ class Problem:
             return np.zeros((len(p), 0))
         return np.column_stack(cols)
 
-    def evaluate(self, axis, blocks, withheld=True):
-        """Residuals of sim + blocks for one axis: 'cv' on the training log's masked rows in
-        held-out order, 'w' on the withheld log's masked rows (None without one)."""
-        per_run = any(BY_NAME[n].per_run for n, _ in blocks)
+    def _train_design(self, axis, blocks, model):
+        """(X raw on masked training rows with per-run and level columns, scale, Xs filtered
+        and scaled, number of level columns). Level columns (one per filter restart after
+        the first) give a walking bias a free level where the filter restarts; the base
+        intercept is the first segment's."""
         m = self.train.mask
+        per_run = any(BY_NAME[n].per_run for n, _ in blocks)
+        key = (axis, model.key(), tuple((n, _shape_key(s)) for n, s in blocks))
+        if key in self._wcache:
+            return self._wcache[key]
         X = self._design(self.train, axis, blocks)[m]
-        y = self.y_t[m, axis]
         if per_run:
             runs = np.unique(self.runs_m)
             X = np.column_stack([X, (self.runs_m[:, None] == runs[None, :]).astype(float)])
+        st = self.starts(self.train, axis, model)
+        nlev = 0
+        if model.walks and len(st) > 1:
+            L = N.level_columns(len(X), st, model)[:, 1:]
+            X = np.column_stack([X, L])
+            nlev = L.shape[1]
         scale = np.sqrt(np.mean(X * X, axis=0)) if X.shape[1] else np.zeros(0)
         scale[scale == 0] = 1.0
-        Xs = X / scale
+        Xs = N.whiten(X / scale, model, st) if X.shape[1] else X
+        if len(self._wcache) > 6:
+            self._wcache.pop(next(iter(self._wcache)))
+        out = (X, scale, Xs, nlev, st)
+        self._wcache[key] = out
+        return out
+
+    def _yw(self, axis, model, st):
+        key = (axis, model.key(), "y")
+        if key not in self._wcache:
+            self._wcache[key] = N.whiten(self.y_t[self.train.mask, axis], model, st)
+        return self._wcache[key]
+
+    def evaluate(self, axis, blocks, withheld=True, model=None):
+        """Residuals of sim + blocks for one axis under the axis's noise model (or `model`):
+        'cv' the one-step-ahead innovations of the training log's held-out segments (masked
+        rows in held-out order; plain residuals under white noise), 'w' the withheld log's
+        residuals (None without one), 's2' the innovation variance the noise model implies."""
+        model = model or self.noise[axis]
+        per_run = any(BY_NAME[n].per_run for n, _ in blocks)
+        X, scale, Xs, nlev, st = self._train_design(axis, blocks, model)
+        y = self._yw(axis, model, st)
+        yr = self.y_t[self.train.mask, axis]
         Gf = [Xs[i].T @ Xs[i] for i in self._idx]
         bf = [Xs[i].T @ y[i] for i in self._idx]
         G, b = sum(Gf), sum(bf)
         r_cv = np.empty_like(y)
+        B = 0 if model.is_white else model.memory()
         for f, i in enumerate(self._idx):
-            beta = _solve(G - Gf[f], b - bf[f])
-            r_cv[i] = y[i] - Xs[i] @ beta
+            Gk, bk = G - Gf[f], b - bf[f]
+            if B and i.size:
+                # Rows just after the held-out segment carry its data through the filter.
+                j = np.arange(i[-1] + 1, min(len(y), i[-1] + 1 + min(B, max(1, i.size // 2))))
+                j = j[self.fold_m[j] != f]
+                if j.size:
+                    Gk = Gk - Xs[j].T @ Xs[j]
+                    bk = bk - Xs[j].T @ y[j]
+            beta = _solve(Gk, bk)
+            if model.walks:
+                # A walking bias's level at the segment's start is unknown (diffuse): the
+                # segment's own first observation sets it, then the filter predicts each row
+                # from those before it (the first innovation carries no information: 0).
+                z = yr[i] - (X[i] / scale) @ beta
+                fs = np.unique(np.r_[0, np.flatnonzero(np.isin(i, st))])
+                for s0, e0 in zip(fs, list(fs[1:]) + [len(i)]):
+                    z[s0:e0] -= z[s0]
+                r_cv[i] = N.whiten(z, model, fs)
+            else:
+                r_cv[i] = y[i] - Xs[i] @ beta
             if per_run:
                 # A run wholly inside the held-out block has no fitted constant: capture it
                 # from the block's first samples of that run, as for a withheld log.
                 seen = np.isin(self.runs_m[i], self.runs_m[self.fold_m != f])
                 r_cv[i] = _startup_correct(r_cv[i], self.runs_m[i], ~seen)
-        out = {"cv": r_cv[self.cv_keep], "w": None}
+        beta = _solve(G, b)
+        out = {"cv": r_cv[self.cv_keep], "w": None, "s2": model.filter()[2],
+               "ins": y - Xs @ beta if X.shape[1] else y}
         if withheld and self.withheld is not None:
             pw = self.withheld
-            beta = _solve(G, b)
+            k = X.shape[1] - nlev
             Xw = self._design(pw, axis, blocks)[pw.mask]
             if per_run:
                 Xw = np.column_stack([Xw, np.zeros((Xw.shape[0], len(np.unique(self.runs_m))))])
-            rw = self.y_w[pw.mask, axis] - (Xw / scale) @ beta if Xw.shape[1] else self.y_w[pw.mask, axis].copy()
+            rw = self.y_w[pw.mask, axis] - (Xw / scale[:k]) @ beta[:k] if Xw.shape[1] \
+                else self.y_w[pw.mask, axis].copy()
             if per_run:
                 wr = pw.log.run[pw.mask] if pw.log.run is not None else np.zeros(len(rw), int)
                 rw = _startup_correct(rw, wr, np.ones(len(rw), bool))
             out["w"] = rw
         return out
 
-    def full_residual(self, p, axis, blocks):
-        """Residual on every row of prepared log p (training fit on all masked rows) - for
-        the localisation and the plots, not for scoring."""
-        m = self.train.mask
-        X = self._design(self.train, axis, blocks)[m]
-        y = self.y_t[m, axis]
+    def _beta(self, axis, blocks, model=None):
+        model = model or self.noise[axis]
+        X, scale, Xs, nlev, st = self._train_design(axis, blocks, model)
+        y = self._yw(axis, model, st)
+        beta = _solve(Xs.T @ Xs, Xs.T @ y) if X.shape[1] else np.zeros(0)
+        return beta, scale, nlev, X
+
+    def full_residual(self, p, axis, blocks, model=None):
+        """Residual on every row of prepared log p (the fit on all masked training rows under
+        the axis's noise model) - for the localisation, the noise model and the plots."""
+        beta, scale, nlev, X = self._beta(axis, blocks, model)
+        k = len(beta) - nlev
         per_run = any(BY_NAME[n].per_run for n, _ in blocks)
         runs = np.unique(self.runs_m)
-        if per_run:
-            X = np.column_stack([X, (self.runs_m[:, None] == runs[None, :]).astype(float)])
-        scale = np.sqrt(np.mean(X * X, axis=0)) if X.shape[1] else np.zeros(0)
-        scale[scale == 0] = 1.0
-        beta = _solve((X / scale).T @ (X / scale), (X / scale).T @ y) if X.shape[1] else np.zeros(0)
         Xp = self._design(p, axis, blocks)
         if per_run:
             if p is self.train:
@@ -126,27 +221,23 @@ class Problem:
             else:
                 Xp = np.column_stack([Xp, np.zeros((len(p), len(runs)))])
         yp = self._target(p)[:, axis]
-        r = yp - (Xp / scale) @ beta if Xp.shape[1] else yp.copy()
+        r = yp - (Xp / scale[:k]) @ beta[:k] if Xp.shape[1] else yp.copy()
+        if nlev and p is self.train:
+            lev = np.zeros(len(p))
+            lev[self.train.mask] = (X[:, k:] / scale[k:]) @ beta[k:]
+            r = r - lev
         if per_run and p is not self.train:
             rr = p.log.run if p.log.run is not None else np.zeros(len(p), int)
             r = _startup_correct(r, rr, np.ones(len(r), bool))
         return r
 
-
     def coefficients(self, axis, blocks):
         """The fit on every masked training row in physical units: (base or None when the sim
         is given, [(effect, shape, coefficients)], per-run constants {run: c} or None)."""
-        m = self.train.mask
-        X = self._design(self.train, axis, blocks)[m]
-        y = self.y_t[m, axis]
+        beta, scale, nlev, X = self._beta(axis, blocks)
+        beta = beta[:len(beta) - nlev] / scale[:len(beta) - nlev]
         per_run = any(BY_NAME[n].per_run for n, _ in blocks)
         runs = np.unique(self.runs_m)
-        if per_run:
-            X = np.column_stack([X, (self.runs_m[:, None] == runs[None, :]).astype(float)])
-        scale = np.sqrt(np.mean(X * X, axis=0)) if X.shape[1] else np.zeros(0)
-        scale[scale == 0] = 1.0
-        Xs = X / scale
-        beta = _solve(Xs.T @ Xs, Xs.T @ y) / scale if X.shape[1] else np.zeros(0)
         k = 0
         base = None
         if self.model is None:
@@ -164,6 +255,14 @@ class Problem:
             k += w
         tob = {int(r): float(c) for r, c in zip(runs, beta[k:])} if per_run else None
         return base, parts, tob
+
+
+def _shape_key(s):
+    if isinstance(s, tuple):
+        return tuple(_shape_key(x) for x in s)
+    if isinstance(s, (float, np.floating)):
+        return float(s)
+    return s
 
 
 def _solve(G, b):
