@@ -18,6 +18,9 @@ from .features import Context, Prepared
 from .model import base_columns
 
 RCOND = 1e-10
+RCOND_WALK = 1e-5   # under a walking bias a filtered column keeps only its differences; a
+                    # direction carrying < 1e-7 of the information (a spline basis reached only
+                    # inside the held-out segment) is dropped rather than fitted huge
 
 
 class Problem:
@@ -127,9 +130,13 @@ class Problem:
             L = N.level_columns(len(X), st, model)[:, 1:]
             X = np.column_stack([X, L])
             nlev = L.shape[1]
-        scale = np.sqrt(np.mean(X * X, axis=0)) if X.shape[1] else np.zeros(0)
+        # Each column scaled by its RMS after the filter: under a walking bias a slow column
+        # (a spline in temperature) keeps only its small differences, and the solve's rank
+        # cut must judge it at that size, not against its raw size.
+        Xw = N.whiten(X, model, st) if X.shape[1] else X
+        scale = np.sqrt(np.mean(Xw * Xw, axis=0)) if X.shape[1] else np.zeros(0)
         scale[scale == 0] = 1.0
-        Xs = N.whiten(X / scale, model, st) if X.shape[1] else X
+        Xs = Xw / scale
         if len(self._wcache) > 6:
             self._wcache.pop(next(iter(self._wcache)))
         out = (X, scale, Xs, nlev, st)
@@ -150,8 +157,10 @@ class Problem:
         model = model or self.noise[axis]
         per_run = any(BY_NAME[n].per_run for n, _ in blocks)
         X, scale, Xs, nlev, st = self._train_design(axis, blocks, model)
+        st0 = st
         y = self._yw(axis, model, st)
         yr = self.y_t[self.train.mask, axis]
+        k_fix = X.shape[1] - nlev
         Gf = [Xs[i].T @ Xs[i] for i in self._idx]
         bf = [Xs[i].T @ y[i] for i in self._idx]
         G, b = sum(Gf), sum(bf)
@@ -166,16 +175,33 @@ class Problem:
                 if j.size:
                     Gk = Gk - Xs[j].T @ Xs[j]
                     bk = bk - Xs[j].T @ y[j]
-            beta = _solve(Gk, bk)
+            beta = _solve(Gk, bk, RCOND if model.is_white else RCOND_WALK)
+            st = st0
             if model.walks:
-                # A walking bias's level at the segment's start is unknown (diffuse): the
-                # segment's own first observation sets it, then the filter predicts each row
-                # from those before it (the first innovation carries no information: 0).
-                z = yr[i] - (X[i] / scale) @ beta
-                fs = np.unique(np.r_[0, np.flatnonzero(np.isin(i, st))])
-                for s0, e0 in zip(fs, list(fs[1:]) + [len(i)]):
+                # One-step-ahead from everything before the held-out segment (the filter
+                # carries the walk's level in); a filter segment that starts inside it has an
+                # unknown (diffuse) level, set by its own first observation, whose innovation
+                # carries no information (0).
+                z = yr - (X[:, :k_fix] / scale[:k_fix]) @ beta[:k_fix]
+                if nlev:
+                    z = z - (X[:, k_fix:] / scale[k_fix:]) @ beta[k_fix:]
+                inside = st[self.fold_m[st] == f]
+                # Rows of the segment it does not score (beyond what the others cover) must
+                # not feed the filter: it restarts, diffuse, at the first scored row after them.
+                out_i = i[~self.cv_keep[i]]
+                if out_i.size:
+                    z[out_i] = 0.0
+                    after = out_i + 1
+                    after = after[(after < len(z)) & (self.fold_m[np.minimum(after, len(z) - 1)] == f)]
+                    after = after[self.cv_keep[after]]
+                    inside = np.union1d(inside, after)
+                    st = np.union1d(st, after)
+                for s0 in inside:
+                    e0 = st[st > s0][0] if np.any(st > s0) else len(z)
                     z[s0:e0] -= z[s0]
-                r_cv[i] = N.whiten(z, model, fs)
+                u = N.whiten(z, model, st)
+                u[inside] = 0.0
+                r_cv[i] = u[i]
             else:
                 r_cv[i] = y[i] - Xs[i] @ beta
             if per_run:
@@ -183,7 +209,7 @@ class Problem:
                 # from the block's first samples of that run, as for a withheld log.
                 seen = np.isin(self.runs_m[i], self.runs_m[self.fold_m != f])
                 r_cv[i] = _startup_correct(r_cv[i], self.runs_m[i], ~seen)
-        beta = _solve(G, b)
+        beta = _solve(G, b, RCOND if model.is_white else RCOND_WALK)
         out = {"cv": r_cv[self.cv_keep], "w": None, "s2": model.filter()[2],
                "ins": y - Xs @ beta if X.shape[1] else y}
         if withheld and self.withheld is not None:
@@ -204,7 +230,8 @@ class Problem:
         model = model or self.noise[axis]
         X, scale, Xs, nlev, st = self._train_design(axis, blocks, model)
         y = self._yw(axis, model, st)
-        beta = _solve(Xs.T @ Xs, Xs.T @ y) if X.shape[1] else np.zeros(0)
+        beta = _solve(Xs.T @ Xs, Xs.T @ y, RCOND if model.is_white else RCOND_WALK) \
+            if X.shape[1] else np.zeros(0)
         return beta, scale, nlev, X
 
     def full_residual(self, p, axis, blocks, model=None):
@@ -265,9 +292,13 @@ def _shape_key(s):
     return s
 
 
-def _solve(G, b):
+def _solve(G, b, rcond=RCOND):
     if G.shape[0] == 0:
         return np.zeros(0)
+    if rcond > RCOND:
+        # Walking bias: a ridge of rcond x the mean information per column, so a direction
+        # the filtered training rows barely see is shrunk to 0 instead of fitted huge.
+        G = G + rcond * np.trace(G) / G.shape[0] * np.eye(G.shape[0])
     return np.linalg.lstsq(G, b, rcond=RCOND)[0]
 
 

@@ -203,7 +203,7 @@ def plot(res, extras, path):
         c = AXIS_COLOURS[AXES[a]]
         ax.plot(range(len(wf)), [w["withheld_rms"][AXES[a]] for w in wf], "o-", color=c,
                 label=AXES[a])
-        ax.axhline(res["noise_floor"][AXES[a]], ls=":", color=c)
+        ax.axhline(res.get("model_floor", res["noise_floor"])[AXES[a]], ls=":", color=c)
     ax.set_xticks(range(len(wf)), labels, rotation=20, ha="right", fontsize=8)
     ax.set_ylabel(f"scored RMS ({u})")
     ax.set_yscale("log")
