@@ -41,6 +41,7 @@ class Problem:
         self.runs_t = train.run if train.run is not None else np.zeros(len(train), int)
         self.fold_m = self.fold[m]
         self.runs_m = self.runs_t[m]
+        self._run_starts_m = np.flatnonzero(np.r_[False, np.diff(self.runs_m) != 0])
         self._idx = [np.flatnonzero(self.fold_m == f) for f in range(self.nfold)]
         # A held-out segment scores only where the other segments have been: rows at a
         # temperature (or input) only that segment reaches would judge extrapolation, and a
@@ -186,6 +187,12 @@ class Problem:
                 if nlev:
                     z = z - (X[:, k_fix:] / scale[k_fix:]) @ beta[k_fix:]
                 inside = st[self.fold_m[st] == f]
+                if per_run:
+                    # A power-on inside the held-out segment: its constant is captured at
+                    # start-up (as for a withheld log), i.e. a diffuse level there.
+                    rs = self._run_starts_m[self.fold_m[self._run_starts_m] == f]
+                    inside = np.union1d(inside, rs)
+                    st = np.union1d(st, rs)
                 # Rows of the segment it does not score (beyond what the others cover) must
                 # not feed the filter: it restarts, diffuse, at the first scored row after them.
                 out_i = i[~self.cv_keep[i]]
