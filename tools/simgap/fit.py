@@ -157,9 +157,8 @@ class Problem:
         residuals (None without one), 's2' the innovation variance the noise model implies."""
         model = model or self.noise[axis]
         per_run = any(BY_NAME[n].per_run for n, _ in blocks)
-        X, scale, Xs, nlev, st = self._train_design(axis, blocks, model)
-        st0 = st
-        y = self._yw(axis, model, st)
+        X, scale, Xs, nlev, st0 = self._train_design(axis, blocks, model)
+        y = self._yw(axis, model, st0)
         yr = self.y_t[self.train.mask, axis]
         k_fix = X.shape[1] - nlev
         Gf = [Xs[i].T @ Xs[i] for i in self._idx]
@@ -177,37 +176,37 @@ class Problem:
                     Gk = Gk - Xs[j].T @ Xs[j]
                     bk = bk - Xs[j].T @ y[j]
             beta = _solve(Gk, bk, RCOND if model.is_white else RCOND_WALK)
-            st = st0
-            if model.walks:
-                # One-step-ahead from everything before the held-out segment (the filter
-                # carries the walk's level in); a filter segment that starts inside it has an
-                # unknown (diffuse) level, set by its own first observation, whose innovation
-                # carries no information (0).
+            if not model.is_white:
+                # One-step-ahead from everything before the held-out segment: the filter
+                # carries the bias's state in. Where a walking bias's filter segment starts
+                # inside it, or a power-on does (its constant captured at start-up, as for a
+                # withheld log), the level is unknown (diffuse): the first observation sets it
+                # and its innovation carries no information (0). Rows it does not score
+                # (beyond what the other segments cover) do not feed the filter: it restarts
+                # at the first scored row after them.
                 z = yr - (X[:, :k_fix] / scale[:k_fix]) @ beta[:k_fix]
                 if nlev:
                     z = z - (X[:, k_fix:] / scale[k_fix:]) @ beta[k_fix:]
-                inside = st[self.fold_m[st] == f]
+                rst = st0
+                diffuse = st0[self.fold_m[st0] == f] if model.walks else np.zeros(0, int)
                 if per_run:
-                    # A power-on inside the held-out segment: its constant is captured at
-                    # start-up (as for a withheld log), i.e. a diffuse level there.
                     rs = self._run_starts_m[self.fold_m[self._run_starts_m] == f]
-                    inside = np.union1d(inside, rs)
-                    st = np.union1d(st, rs)
-                # Rows of the segment it does not score (beyond what the others cover) must
-                # not feed the filter: it restarts, diffuse, at the first scored row after them.
+                    diffuse = np.union1d(diffuse, rs)
                 out_i = i[~self.cv_keep[i]]
                 if out_i.size:
                     z[out_i] = 0.0
                     after = out_i + 1
-                    after = after[(after < len(z)) & (self.fold_m[np.minimum(after, len(z) - 1)] == f)]
-                    after = after[self.cv_keep[after]]
-                    inside = np.union1d(inside, after)
-                    st = np.union1d(st, after)
-                for s0 in inside:
-                    e0 = st[st > s0][0] if np.any(st > s0) else len(z)
-                    z[s0:e0] -= z[s0]
-                u = N.whiten(z, model, st)
-                u[inside] = 0.0
+                    after = after[after < len(z)]
+                    after = after[(self.fold_m[after] == f) & self.cv_keep[after]]
+                    rst = np.union1d(rst, after)
+                    if model.walks:
+                        diffuse = np.union1d(diffuse, after)
+                rst = np.union1d(rst, diffuse).astype(int)
+                for s0 in diffuse:
+                    nxt = rst[rst > s0]
+                    z[s0:(nxt[0] if nxt.size else len(z))] -= z[s0]
+                u = N.whiten(z, model, rst)
+                u[diffuse.astype(int)] = 0.0
                 r_cv[i] = u[i]
             else:
                 r_cv[i] = y[i] - Xs[i] @ beta
