@@ -18,7 +18,7 @@ RATIO_WARN = 1.5        # final RMS over the model floor above which the residua
 BOOT_REPS = 300         # block-bootstrap replicates of every shrink and final RMS interval
 COVERED_MIN = 0.95      # fraction of withheld rows inside the training coverage
 QUANT_WARN = 1.0        # output step over the noise floor above which quantisation is reported
-MAX_ROWS = 100_000      # longer logs are diagnosed on every k-th row (rows.stride)
+MAX_ROWS = 50_000       # longer logs are diagnosed on every k-th row (rows.stride)
 TOB_T = 5.0             # t (effective samples) of a constant shift on a separate power-on
 TOB_GAIN = 0.2          # ... and removing it must cut the withheld RMS by 20 %
 

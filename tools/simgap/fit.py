@@ -121,28 +121,46 @@ class Problem:
         key = (axis, model.key(), tuple((n, _shape_key(s)) for n, s in blocks))
         if key in self._wcache:
             return self._wcache[key]
-        X = self._design(self.train, axis, blocks)[m]
-        if per_run:
-            runs = np.unique(self.runs_m)
-            X = np.column_stack([X, (self.runs_m[:, None] == runs[None, :]).astype(float)])
         st = self.starts(self.train, axis, model)
-        nlev = 0
-        if model.walks and len(st) > 1:
-            L = N.level_columns(len(X), st, model)[:, 1:]
-            X = np.column_stack([X, L])
-            nlev = L.shape[1]
+        pkey = (axis, model.key(), key[2][:-1], "prefix")
+        last = blocks[-1] if blocks else None
+        plain = not model.is_white and not per_run and len(st) == 1
+        if blocks and plain and pkey in self._wcache:
+            # The state's filtered columns are cached; only the candidate's are filtered.
+            X0, Xw0 = self._wcache[pkey]
+            Xn = BY_NAME[last[0]].columns(self.ctx, self.train, last[1], axis)[m]
+            X = np.column_stack([X0, Xn])
+            Xw = np.column_stack([Xw0, N.whiten(Xn, model, st)])
+            nlev = 0
+        else:
+            X = self._design(self.train, axis, blocks)[m]
+            if per_run:
+                runs = np.unique(self.runs_m)
+                X = np.column_stack([X, (self.runs_m[:, None] == runs[None, :]).astype(float)])
+            nlev = 0
+            if model.walks and len(st) > 1:
+                L = N.level_columns(len(X), st, model)[:, 1:]
+                X = np.column_stack([X, L])
+                nlev = L.shape[1]
+            Xw = N.whiten(X, model, st) if X.shape[1] else X
         # Each column scaled by its RMS after the filter: under a walking bias a slow column
         # (a spline in temperature) keeps only its small differences, and the solve's rank
         # cut must judge it at that size, not against its raw size.
-        Xw = N.whiten(X, model, st) if X.shape[1] else X
         scale = np.sqrt(np.mean(Xw * Xw, axis=0)) if X.shape[1] else np.zeros(0)
         scale[scale == 0] = 1.0
         Xs = Xw / scale
-        if len(self._wcache) > 6:
+        while len(self._wcache) > 4:
             self._wcache.pop(next(iter(self._wcache)))
         out = (X, scale, Xs, nlev, st)
-        self._wcache[key] = out
+        if X.shape[1] <= 40:
+            self._wcache[key] = out
+            if plain:
+                self._wcache[(axis, model.key(), key[2], "prefix")] = (X, Xw)
         return out
+
+    def prime(self, axis, blocks):
+        """Filter the state's design once, so each candidate filters only its own columns."""
+        self._train_design(axis, blocks, self.noise[axis])
 
     def _yw(self, axis, model, st):
         key = (axis, model.key(), "y")
@@ -160,7 +178,6 @@ class Problem:
         X, scale, Xs, nlev, st0 = self._train_design(axis, blocks, model)
         y = self._yw(axis, model, st0)
         yr = self.y_t[self.train.mask, axis]
-        k_fix = X.shape[1] - nlev
         Gf = [Xs[i].T @ Xs[i] for i in self._idx]
         bf = [Xs[i].T @ y[i] for i in self._idx]
         G, b = sum(Gf), sum(bf)
@@ -184,10 +201,16 @@ class Problem:
                 # and its innovation carries no information (0). Rows it does not score
                 # (beyond what the other segments cover) do not feed the filter: it restarts
                 # at the first scored row after them.
-                z = yr - (X[:, :k_fix] / scale[:k_fix]) @ beta[:k_fix]
-                if nlev:
-                    z = z - (X[:, k_fix:] / scale[k_fix:]) @ beta[k_fix:]
-                rst = st0
+                # Only the rows that reach the segment through the filter's memory matter.
+                w0 = int(i[0])
+                lo = max(0, w0 - B)
+                prev = st0[st0 <= w0]
+                if prev.size:
+                    lo = max(lo, int(prev[-1]))
+                hi = int(i[-1]) + 1
+                z = np.zeros(len(yr))
+                z[lo:hi] = yr[lo:hi] - (X[lo:hi] / scale) @ beta
+                rst = np.union1d(st0, [lo])
                 diffuse = st0[self.fold_m[st0] == f] if model.walks else np.zeros(0, int)
                 if per_run:
                     rs = self._run_starts_m[self.fold_m[self._run_starts_m] == f]
@@ -205,9 +228,10 @@ class Problem:
                 for s0 in diffuse:
                     nxt = rst[rst > s0]
                     z[s0:(nxt[0] if nxt.size else len(z))] -= z[s0]
-                u = N.whiten(z, model, rst)
-                u[diffuse.astype(int)] = 0.0
-                r_cv[i] = u[i]
+                rw = rst[(rst >= lo) & (rst < hi)] - lo
+                u = N.whiten(z[lo:hi], model, rw)
+                u[diffuse.astype(int) - lo] = 0.0
+                r_cv[i] = u[i - lo]
             else:
                 r_cv[i] = y[i] - Xs[i] @ beta
             if per_run:

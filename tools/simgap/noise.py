@@ -367,7 +367,7 @@ def estimate(r, dt, starts, s2_init, ad_fit=None):
     o = optimize.minimize_scalar(lambda lq: -ll_of(s2 * np.exp(lq)), bounds=(lq_lo, np.log(1e3)),
                                  method="bounded", options={"xatol": 0.05})
     cands["rw"] = (-o.fun, (s2 * np.exp(o.x), 0.0, 0.0))
-    if fit.get("g2", 0) > 0.02 * s2 and fit.get("phi", 0) > 0:
+    if fit.get("g2", 0) > 0.05 * s2 and fit.get("phi", 0) > 0:
         def lp(p):
             return (s2 * np.exp(np.clip(p[0], -40, 12)), s2 * np.exp(np.clip(p[1], -20, 12)),
                     float(np.clip(1 / (1 + np.exp(-p[2])), phi_lo, phi_hi)))
@@ -375,14 +375,23 @@ def estimate(r, dt, starts, s2_init, ad_fit=None):
         phi0 = float(np.clip(fit["phi"], phi_lo, phi_hi))
         p0 = np.array([o.x, np.log(fit["g2"] / s2), np.log(phi0 / (1 - phi0))])
         o2 = optimize.minimize(lambda p: -ll_of(*lp(p)), p0, method="Nelder-Mead",
-                               options={"xatol": 2e-2, "fatol": 0.05, "maxfev": 90})
+                               options={"xatol": 5e-2, "fatol": 0.1, "maxfev": 60})
         q, g2, phi = lp(o2.x)
         cands["rw+gm"] = (-o2.fun, (q, g2, phi))
         cands["gm"] = (ll_of(0.0, g2, phi), (0.0, g2, phi))
     nterms = {"white": 0, "rw": 1, "gm": 2, "rw+gm": 3}
+    gain = max(TERM_GAIN, 0.5 * np.log(n))     # BIC per parameter, at least TERM_GAIN
+
+    def material(kind):
+        # A term must matter: what it adds over the log (random walk q n / 6, Gauss-Markov g2)
+        # at least 2 % of the white variance - else the filter stays the identity.
+        q, g2, _ = cands[kind][1]
+        return q * n / 6 + g2 > 0.02 * s2
+
     best = "white"
     for kind in ("rw", "gm", "rw+gm"):
-        if kind in cands and cands[kind][0] > cands[best][0] + TERM_GAIN * (nterms[kind] - nterms[best]):
+        if kind in cands and material(kind) and \
+                cands[kind][0] > cands[best][0] + gain * (nterms[kind] - nterms[best]):
             best = kind
     q, g2, phi = cands[best][1]
     m = NoiseModel(s2, q, g2, phi, dt)

@@ -198,6 +198,7 @@ class Greedy:
         state, under the axis's current (saturated) noise model."""
         e = BY_NAME[name]
         best = None
+        self.prob.prime(axis, self.state[axis])
         for shape in e.shapes_given(self.prob.ctx, self.state[axis]):
             res = self.prob.evaluate(axis, self.state[axis] + [(name, shape)], withheld=False)
             ss = float(np.sum(res["cv"] ** 2))
@@ -269,6 +270,7 @@ class Greedy:
         pool = {n: list(ax) for n, ax in self.avail.items()}
         chosen = []
         self.record = {}          # (effect, axis) -> the trial that added it
+        rejected = {}             # (effect, axis) -> state length when the wander check refused it
         first = True
         while True:
             trials = {n: {a: self._try(n, a) for a in ax} for n, ax in pool.items() if ax}
@@ -282,9 +284,14 @@ class Greedy:
                 if not any(a in tr for tr in trials.values()):
                     continue
                 sd, tau = self._noise_stats(trials, a)
-                for tr in trials.values():
+                for n, tr in trials.items():
                     if a in tr:
                         self._judge(tr[a], a, tau, sd)
+                        # Turned down by the wander check with this same state: it stays in the
+                        # saturated model (its structure is not noise) but may try again only
+                        # once another effect has entered on the axis.
+                        if rejected.get((n, a)) == len(self.state[a]):
+                            tr[a]["significant"] = False
             scores = {n: sum(v["score"] for v in tr.values() if v["significant"])
                       for n, tr in trials.items()}
             sig = [n for n in trials if any(v["significant"] for v in trials[n].values())]
@@ -304,14 +311,14 @@ class Greedy:
                 with_ = self.state[a] + [(win, v["shape"])]
                 z, gain, i0 = self._wander_check(a, self.state[a], with_, win)
                 v.update(z_wander=z, loglik_gain=gain)
-                pool[win].remove(a)
-                if z < Z_WANDER and v["significant"]:
-                    self.wander.append({"effect": win, "axis": a, "z": z, "gain": gain,
-                                        "kind": N.describe(i0["model"], self.sigma[a]),
-                                        "shape": v["shape"]})
-                    continue
                 if z < Z_WANDER:
+                    rejected[(win, a)] = len(self.state[a])
+                    if v["significant"]:
+                        self.wander.append({"effect": win, "axis": a, "z": z, "gain": gain,
+                                            "kind": N.describe(i0["model"], self.sigma[a]),
+                                            "shape": v["shape"]})
                     continue
+                pool[win].remove(a)
                 self.state[a].append((win, v["shape"]))
                 self.cur[a] = v["res"]
                 self.record[(win, a)] = v
