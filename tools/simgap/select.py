@@ -309,7 +309,13 @@ class Greedy:
                 if not take:
                     continue
                 with_ = self.state[a] + [(win, v["shape"])]
-                z, gain, i0 = self._wander_check(a, self.state[a], with_, win)
+                if self.prob.noise[a].is_white:
+                    # The saturated model (every candidate in) leaves no wander on this axis:
+                    # the data hold no random walk that could explain the effect (a walk
+                    # estimated without the effect was the effect itself).
+                    z, gain, i0 = np.inf, float(v["score"]) / 2, None
+                else:
+                    z, gain, i0 = self._wander_check(a, self.state[a], with_, win)
                 v.update(z_wander=z, loglik_gain=gain)
                 if z < Z_WANDER:
                     rejected[(win, a)] = len(self.state[a])
@@ -370,6 +376,8 @@ class Greedy:
         removed = []
         for a in range(3):
             while self.state[a]:
+                if self.noise_for(a, self.state[a])["model"].is_white:
+                    break       # no wander left with the chosen effects in: nothing to explain them
                 worst = None
                 for i, (name, shape) in enumerate(self.state[a]):
                     without = self.state[a][:i] + self.state[a][i + 1:]
