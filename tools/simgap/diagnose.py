@@ -18,7 +18,7 @@ RATIO_WARN = 1.5        # final RMS over the model floor above which the residua
 BOOT_REPS = 300         # block-bootstrap replicates of every shrink and final RMS interval
 COVERED_MIN = 0.95      # fraction of withheld rows inside the training coverage
 QUANT_WARN = 1.0        # output step over the noise floor above which quantisation is reported
-MAX_ROWS = 50_000       # longer logs are diagnosed on every k-th row (rows.stride)
+MAX_ROWS = 30_000       # longer logs are diagnosed on every k-th row (rows.stride)
 TOB_T = 5.0             # t (effective samples) of a constant shift on a separate power-on
 TOB_GAIN = 0.2          # ... and removing it must cut the withheld RMS by 20 %
 
@@ -37,7 +37,7 @@ def _warn(code, message, **kw):
 
 def _thin(log):
     """Every k-th row of a log longer than MAX_ROWS (k = ceil(n / MAX_ROWS)), and k. A
-    temperature log's effects live over minutes; 50,000 rows resolve them, thinning keeps the
+    temperature log's effects live over minutes; 30,000 rows resolve them, thinning keeps the
     noise model's family (white stays white, a walk's increments add), and the fit's cost and
     memory stay bounded (1 M + 1 M rows within a minute on one core)."""
     if log is None or len(log) <= MAX_ROWS:
