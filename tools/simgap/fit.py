@@ -18,9 +18,9 @@ from .features import Context, Prepared
 from .model import base_columns
 
 RCOND = 1e-10
-RCOND_WALK = 1e-5   # under a walking bias a filtered column keeps only its differences; a
-                    # direction carrying < 1e-7 of the information (a spline basis reached only
-                    # inside the held-out segment) is dropped rather than fitted huge
+RCOND_WALK = 1e-9   # under a non-white noise model: a ridge of 1e-9 x the mean information
+                    # per column keeps a direction the filtered rows never see at 0 (a stronger
+                    # ridge, 1e-5, blurred the thermal lag's nearly collinear columns)
 
 
 class Problem:
