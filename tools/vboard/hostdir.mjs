@@ -130,7 +130,7 @@ export class HostDir {
       const tmp = `${dir}/${TMP_PREFIX}${process.pid}-${++tmpSeq}`;
       const fd = fs.openSync(tmp, NEW_FILE, 0o644);
       try {
-        fs.writeSync(fd, data);
+        for (let n = 0; n < data.length; ) n += fs.writeSync(fd, data, n, data.length - n);
       } catch (e) {
         fs.closeSync(fd);
         fs.rmSync(tmp, { force: true });
