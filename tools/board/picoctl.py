@@ -60,9 +60,11 @@ def _digest(paths):
 
 
 def deployed_image():
-    """A flash image with tempcomp (.mpy, as make deploy installs it) in /lib and host_tests/device
-    in /vmtest: built once per content, then copied from build/pico/."""
-    key = _digest([os.path.join(REPO, "lib"), DEVICE, os.path.join(FW, "firmware.bin"),
+    """A flash image with tempcomp (.mpy, as make deploy installs it) and boards/pico.py (as
+    tempcomp_board) in /lib, host_tests/device in /vmtest: built once per content, then copied
+    from build/pico/."""
+    board_py = os.path.join(REPO, "boards", "pico.py")
+    key = _digest([os.path.join(REPO, "lib"), DEVICE, os.path.join(FW, "firmware.bin"), board_py,
                    os.path.join(REPO, "tools", "board", "build_mpy.py")])
     img = os.path.join(HOME, "deployed-%s.img" % key)
     if os.path.exists(img):
@@ -81,7 +83,7 @@ def deployed_image():
             r.mpremote("mip", "install", "--target", "/lib", pkg, timeout=600)
             r.mpremote("mkdir", ":/vmtest")
             files = sorted(f for f in os.listdir(DEVICE) if f.endswith(".py"))
-            args = []
+            args = ["cp", board_py, ":/lib/tempcomp_board.py", "+"]
             for f in files:
                 args += ["cp", os.path.join(DEVICE, f), ":/vmtest/" + f, "+"]
             r.mpremote(*args[:-1], timeout=600)
