@@ -176,6 +176,18 @@ def build_rp2(out, src):
     shutil.copy2(os.path.join(obj, "firmware.bin"), os.path.join(out, "rp2", "firmware.bin"))
 
 
+def rp2_bootrom(out):
+    """The RP2040's B1 mask ROM for rp2040js (rp2040-bootrom-b1.mjs in ../shared/vendor) beside the
+    Pico firmware: the virtual Pico boots through it (tools/pico/boot.mjs)."""
+    dst = os.path.join(out, "rp2", "bootrom.mjs")
+    src = os.path.join(VENDOR, "rp2040-bootrom-b1.mjs")
+    if os.path.exists(os.path.join(out, "rp2", "firmware.bin")) and not os.path.exists(dst):
+        if os.path.exists(src):
+            shutil.copy2(src, dst)
+        else:
+            log("%s not found: the virtual Pico cannot boot without the RP2040 bootrom" % src)
+
+
 def artefacts(out):
     return {"mpy-cross": os.path.join(out, "mpy-cross"),
             "an385": os.path.join(out, "an385", "firmware.elf"),
@@ -204,6 +216,7 @@ def main(argv=None):
         need += [p for p in RP2_DEBIAN if p not in need]
     still = debian_packages(need)
     if not want:
+        rp2_bootrom(out)
         log("%s: all present (%s)" % (a.out, ", ".join(artefacts(out))))
         return 0
     os.makedirs(out, exist_ok=True)
@@ -223,6 +236,7 @@ def main(argv=None):
         build_rp2(out, mp)
     if "circuitpython" in want:
         build_circuitpython(out, cp)
+    rp2_bootrom(out)
     left = [k for k, p in artefacts(out).items() if not os.path.exists(p)]
     log("built %s%s" % (", ".join(w for w in want if w not in left) or "nothing",
                         "; still missing: " + ", ".join(left) if left else ""))
