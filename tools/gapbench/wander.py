@@ -75,11 +75,11 @@ LAG_TAU = (30.0, 180.0)           # MEMS structure vs the ASIC sensor in one mou
 LAG_SLOPE = (0.02, 0.06)          # lag_rw: the static slope the lag delays, dps/degC
 HEAVY_SLOPE = (0.005, 0.02)       # lag_heavy: a small static slope ...
 HEAVY_RATIO = (3.0, 8.0)          # ... and a gradient weight 3-8x it (no physics bounds the ratio)
-HYST_H = (0.03, 0.10)             # half the branch gap, dps (package stress, solder creep)
+HYST_H = (0.04, 0.15)             # half the branch gap, dps (package stress, solder creep)
 HYST_W = (2.0, 8.0)               # degC of travel to relax 63 % of the way to a branch
-DRIFT_SLOPE = (0.01, 0.04)        # linear drift since power-on, dps per hour
-WARMUP_A = (0.05, 0.3)            # warm-up settling after power-on, dps ...
-WARMUP_TAU = (180.0, 1500.0)      # ... over 3-25 minutes
+DRIFT_SLOPE = (0.03, 0.12)        # linear drift since power-on, dps per hour
+WARMUP_A = (0.1, 0.8)             # warm-up settling after power-on, dps ...
+WARMUP_TAU = (300.0, 1800.0)      # ... over 5-30 minutes
 HUMID_A = (0.03, 0.12)            # humidity step response of the offset, dps ...
 HUMID_TAU = (900.0, 3600.0)       # ... moisture diffuses into the package over 15-60 min
 # An effect a calibration must care about: what the sim's own terms cannot absorb of it is at
@@ -342,7 +342,7 @@ def _plant(rng, a, ax, kind, logs, scale):
     p = None
     if kind is not None:
         tr = logs["train"]
-        for _ in range(50):
+        for _ in range(200):
             p = draw_effect(kind, rng)
             if kind == "temp_rate_heavy":
                 p["weight_dps_per_c"] = p["sign"] * p["ratio"] * abs(ax["offset_dps"][1])
@@ -350,6 +350,9 @@ def _plant(rng, a, ax, kind, logs, scale):
             if kind == "humidity" or unabsorbed_rms(sig["train"], tr["temp_c"], tr["ref"][a]) \
                     >= MIN_EFFECT * ax["white_dps"]:
                 break
+        else:
+            raise RuntimeError("no %s inside the stated ranges reaches %g white sigmas on this log"
+                               % (kind, MIN_EFFECT))
         if kind == "humidity":
             p["step_s"] = {name: float(lg["humid_step_s"]) for name, lg in logs.items()}
     ax["effect"] = None if kind is None else dict(kind=kind, **p)
