@@ -309,10 +309,10 @@ class Greedy:
                 if not take:
                     continue
                 with_ = self.state[a] + [(win, v["shape"])]
-                if self.prob.noise[a].is_white:
-                    # The saturated model (every candidate in) leaves no wander on this axis:
-                    # the data hold no random walk that could explain the effect (a walk
-                    # estimated without the effect was the effect itself).
+                if self.noise_for(a, with_)["model"].is_white:
+                    # With the effect in, the residual holds no wander: no random walk is
+                    # there to explain the effect (a walk estimated without it was the effect
+                    # itself).
                     z, gain, i0 = np.inf, float(v["score"]) / 2, None
                 else:
                     z, gain, i0 = self._wander_check(a, self.state[a], with_, win)
