@@ -160,19 +160,35 @@ def diagnose(train, withheld=None, model=None):
         # is scored once.
         if not outside:
             for a in range(3):
+                wanders = not prob.noise[a].is_white
                 while g.state[a]:
-                    full = _rms(scored(a, prob.full_residual(pw, a, g.state[a])))
+                    rf = scored(a, prob.full_residual(pw, a, g.state[a]))
+                    full = _rms(rf)
                     worst = None
                     for i, (n, _) in enumerate(g.state[a]):
                         without = g.state[a][:i] + g.state[a][i + 1:]
-                        w = _rms(scored(a, prob.full_residual(pw, a, without)))
-                        if w < full and (worst is None or w < worst[1]):
-                            worst = (i, w)
+                        r0 = scored(a, prob.full_residual(pw, a, without))
+                        w = _rms(r0)
+                        lo = None
+                        if wanders and w >= full:
+                            # Under a wandering bias the training log alone cannot always
+                            # tell an effect from the walk; the withheld log (a repeat) must
+                            # confirm it: its shrink's 90 % interval (block bootstrap, block
+                            # length from the noise model) must exclude 0.
+                            lo = uncertainty.shrink_interval(
+                                r0, rf, uncertainty.block_length(prob.noise[a], rf))[0]
+                        bad = w < full or (lo is not None and lo <= 0)
+                        if bad and (worst is None or w < worst[1]):
+                            worst = (i, w, lo)
                     if worst is None:
                         break
                     n = g.state[a][worst[0]][0]
-                    not_confirmed.append({"effect": n, "axis": AXES[a],
-                                          "withheld_rms_with": full, "withheld_rms_without": worst[1]})
+                    rec = {"effect": n, "axis": AXES[a], "withheld_rms_with": full,
+                           "withheld_rms_without": worst[1]}
+                    if worst[2] is not None and worst[1] >= full:
+                        rec["reason"] = ("the bias wanders and the withheld shrink's 90 % interval "
+                                         f"reaches {worst[2]:.3g}: not confirmed")
+                    not_confirmed.append(rec)
                     del g.state[a][worst[0]]
             g.finalise()
             for a in range(3):

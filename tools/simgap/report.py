@@ -74,6 +74,10 @@ def text(res):
         f"floor, {_fmt_ratio(fin.get('ratio_to_white_floor', {}).get(a))} the white floor)"
         for a in fin["withheld_rms"]) + f" {u}")
     for c in res.get("not_confirmed", []):
+        if c.get("reason"):
+            L.append(f"not confirmed: {c['effect']} on {c['axis']} ({c['withheld_rms_without']:.4g} -> "
+                     f"{c['withheld_rms_with']:.4g} {u} withheld): {c['reason']}; left out")
+            continue
         L.append(f"not confirmed: {c['effect']} on {c['axis']} was chosen on the training log but makes "
                  f"the withheld log worse ({c['withheld_rms_without']:.4g} -> {c['withheld_rms_with']:.4g} "
                  f"{u}); left out")

@@ -146,6 +146,20 @@ class Greedy:
         cands.append(N.NoiseModel(s2, s2 * np.exp(o.x), dt=dt))
         return max((ho(m) for m in cands), key=lambda r: float(np.sum(r[0])))
 
+    def _wanders_heldout(self, axis, blocks):
+        """Does a wandering noise model predict the held-out segments of sim + blocks better
+        than white noise, by more than BIC's 0.5 ln n nats and by a material amount?"""
+        ll, _, m = self._heldout_noise(axis, blocks)
+        if m.is_white:
+            return False
+        p = self.prob
+        u = p.evaluate(axis, blocks, withheld=False, model=N.NoiseModel(m.s2, dt=m.dt))["cv"]
+        v = max(float(np.mean(u * u)), 1e-300)
+        lw = float(np.sum(-0.5 * np.log(2 * np.pi * v) - u * u / (2 * v)))
+        n = len(u)
+        material = m.q * n / 6 + m.g2 > 0.02 * m.s2
+        return bool(material and float(np.sum(ll)) - lw > 0.5 * np.log(n))
+
     def _zd(self, d, name):
         """(z, z without the best held-out segment) of per-row gains d, correlation counted."""
         tau = N.autocorr_time(d - np.mean(d))
@@ -309,10 +323,11 @@ class Greedy:
                 if not take:
                     continue
                 with_ = self.state[a] + [(win, v["shape"])]
-                if self.noise_for(a, with_)["model"].is_white:
-                    # With the effect in, the residual holds no wander: no random walk is
-                    # there to explain the effect (a walk estimated without it was the effect
-                    # itself).
+                if not self._wanders_heldout(a, with_):
+                    # With the effect in, the held-out segments hold no wander: no random walk
+                    # is there to explain the effect (a walk estimated without it was the
+                    # effect itself; judged held-out, so a shape that soaks up a walk in-sample
+                    # does not hide it).
                     z, gain, i0 = np.inf, float(v["score"]) / 2, None
                 else:
                     z, gain, i0 = self._wander_check(a, self.state[a], with_, win)
