@@ -42,7 +42,7 @@ except ImportError:
         return x
 
 
-from tempcomp.bus import SPIDevice
+from tempcomp.bus_spi import SPIDevice
 from tempcomp.fixedpoint import EXTRAPOLATE, Compensator, quadratic_through
 
 # --- EEPROM map, AN2 figure 3 and sections 3.1-3.4 (first cell of a field holds its LSB) ---
