@@ -297,3 +297,29 @@ def test_the_lib_rules_catch_a_violation(tmp_path):
         "pkg/sub/__init__.py:2 reads pkg.low._helper",
         "pkg/sub/leaf.py:2 reads pkg.low._helper",
     ]
+
+
+def readme_layers():
+    """{module: layer number} from README's "Layers" list (bottom = 1), module names in backquotes."""
+    import re
+
+    text = (ROOT / "README.md").read_text()
+    sec = text.split("### Layers: `lib/` from the ground up", 1)[1].split("\n#", 1)[0]
+    mods = {n.rpartition(".")[2] for n in lib_modules(ROOT / "lib") if n != "tempcomp"}
+    out = {}
+    for num, body in re.findall(r"^(\d+)\. (.*?)(?=^\d+\. |\Z)", sec, re.S | re.M):
+        for name in re.findall(r"`([a-z0-9_]+)`", body):
+            if name in mods:
+                out.setdefault(name, int(num))
+    return out
+
+
+def test_readme_layers_name_every_module_below_what_imports_it():
+    layer = readme_layers()
+    mods = {n.rpartition(".")[2] for n in lib_modules(ROOT / "lib") if n != "tempcomp"}
+    assert sorted(mods - set(layer)) == [], "modules missing from README's Layers list"
+    up = ["%s (layer %d) imports %s (layer %d)" % (a, layer[a.rpartition(".")[2]], b, layer[b.rpartition(".")[2]])
+          for a, b, _, _, _ in lib_imports(ROOT / "lib")
+          if a != "tempcomp" and b != "tempcomp"
+          and layer[a.rpartition(".")[2]] < layer[b.rpartition(".")[2]]]
+    assert not up, "README's Layers list puts these imports upwards:\n" + "\n".join(up)
