@@ -141,9 +141,18 @@ def diagnose(train, withheld=None, model=None):
         # run's mean removed (a constant captured at start-up), and so is the floor.
         separate = "power_on_s" not in withheld.meta
         wrun = (withheld.run if withheld.run is not None else np.zeros(len(withheld), int))[rows]
+        def wanders_without(a, i):
+            # Could a wandering bias have taken effect i's place? (its axis's noise model
+            # without it wanders, even if the final one, with it in, does not)
+            return not g.noise_for(a, g.state[a][:i] + g.state[a][i + 1:])["model"].is_white
+
+        def axis_wanders(a):
+            return not prob.noise[a].is_white or any(
+                wanders_without(a, i) for i in range(len(g.state[a])))
+
         dm = {}
         for a in range(3):
-            dm[a] = separate and not prob.noise[a].is_white
+            dm[a] = separate and axis_wanders(a)
 
         def scored(a, r):
             r = r[rows]
@@ -160,7 +169,7 @@ def diagnose(train, withheld=None, model=None):
         # is scored once.
         if not outside:
             for a in range(3):
-                wanders = not prob.noise[a].is_white
+                final_wanders = not prob.noise[a].is_white
                 while g.state[a]:
                     rf = scored(a, prob.full_residual(pw, a, g.state[a]))
                     full = _rms(rf)
@@ -170,7 +179,7 @@ def diagnose(train, withheld=None, model=None):
                         r0 = scored(a, prob.full_residual(pw, a, without))
                         w = _rms(r0)
                         lo = None
-                        if wanders and w >= full:
+                        if (final_wanders or wanders_without(a, i)) and w >= full:
                             # Under a wandering bias the training log alone cannot always
                             # tell an effect from the walk; the withheld log (a repeat) must
                             # confirm it: its shrink's 90 % interval (block bootstrap, block
@@ -192,7 +201,7 @@ def diagnose(train, withheld=None, model=None):
                     del g.state[a][worst[0]]
             g.finalise()
             for a in range(3):
-                dm[a] = separate and not prob.noise[a].is_white
+                dm[a] = separate and axis_wanders(a)
             verdict[:] = [v for v in verdict if any(n == v for a in range(3) for n, _ in g.state[a])]
             order[:] = [v for v in order if v in verdict]
         base_w = np.column_stack([prob.full_residual(pw, a, []) for a in range(3)])

@@ -61,6 +61,20 @@ class Effect:
     def columns(self, ctx, p, shape, axis):
         raise NotImplementedError
 
+    def continuous(self, ctx, shape):
+        """A shape's continuous parameter (a time constant, a width), refined between the
+        grid's neighbours by maximum likelihood: (log value, log lo, log hi, shape of a log
+        value), or None for a family without one."""
+        return None
+
+
+def _log_span(grid, v):
+    """(log v, log lo, log hi): one grid step either side of v on a geometric grid."""
+    g = np.log(np.asarray(sorted(grid), float))
+    step = float(np.median(np.diff(g))) if g.size > 1 else np.log(2.0)
+    x = float(np.log(v))
+    return x, x - step, x + step
+
 
 class OffsetTemperature(Effect):
     name = "offset_temperature"
@@ -119,6 +133,13 @@ class Hysteresis(Effect):
         T = F.lowpass(p, tau) if tau else p.log.temp
         return np.column_stack([F.play(p, v, tau) - T for v in (w, 2 * w, 4 * w)])
 
+    def continuous(self, ctx, shape):
+        w, tau = shape if isinstance(shape, tuple) else (shape, None)
+        x, lo, hi = _log_span(self.shapes(ctx), w)
+        if tau is None:
+            return x, lo, hi, lambda v: float(np.exp(v))
+        return x, lo, hi, lambda v: (float(np.exp(v)), tau)
+
 
 class TempRate(Effect):
     """Filtered derivatives: D = T - lowpass(T, tau) ~ tau * dT/dt for slow ramps. Two time
@@ -151,6 +172,10 @@ class TempRate(Effect):
         D2 = T - F.lowpass(p, t2, q)
         r = p.r[:, axis]
         return np.column_stack([D1, D1 * p.d, D2, D2 * p.d, D1 * D1, r * D1, r * D2])
+
+    def continuous(self, ctx, shape):
+        x, lo, hi = _log_span(self.shapes(ctx), shape)
+        return x, lo, hi, lambda v: float(np.exp(v))
 
 
 class CrossAxis(Effect):
@@ -265,6 +290,13 @@ class Drift(Effect):
                     c = (1.0 / (1.0 + x))[:, None]
             p.cache[key] = c
         return p.cache[key]
+
+    def continuous(self, ctx, shape):
+        f, tau = shape
+        if f == "linear":
+            return None
+        x, lo, hi = _log_span([t for g, t in self.shapes(ctx) if g == f], tau)
+        return x, lo, hi, lambda v: (f, float(np.exp(v)))
 
 
 class TurnOnBias(Effect):

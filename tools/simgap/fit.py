@@ -256,6 +256,22 @@ class Problem:
             out["w"] = rw
         return out
 
+    def loglik(self, axis, blocks, model):
+        """(log-likelihood, innovation variance) of sim + blocks on the masked training rows
+        under the noise model, the effects' coefficients (and a walking bias's levels) at
+        their GLS estimates and the scale concentrated out: maximised over the noise model's
+        parameters, this is the profile likelihood of the state-space model."""
+        X, scale, Xs, nlev, st = self._train_design(axis, blocks, model)
+        y = self._yw(axis, model, st)
+        if X.shape[1]:
+            beta = _solve(Xs.T @ Xs, Xs.T @ y, RCOND if model.is_white else RCOND_WALK)
+            u = y - Xs @ beta
+        else:
+            u = y
+        n = len(u)
+        s2 = max(float(np.dot(u, u)) / n, 1e-300)
+        return -0.5 * n * (np.log(2 * np.pi * s2) + 1), s2
+
     def _beta(self, axis, blocks, model=None):
         model = model or self.noise[axis]
         X, scale, Xs, nlev, st = self._train_design(axis, blocks, model)

@@ -348,37 +348,72 @@ def concentrated_loglik(r, model, starts):
 
 
 def estimate(r, dt, starts, s2_init, ad_fit=None):
-    """Maximum-likelihood noise model of residual r: the ratio of the random walk's increment
-    variance to the white variance maximises the concentrated likelihood (scipy's bounded
-    Brent search); where the Allan fit shows a Gauss-Markov term, its variance ratio and phi
-    too (scipy Nelder-Mead from the Allan fit's values). A term joins only when it adds
-    TERM_GAIN nats. Returns (NoiseModel, {kind: loglik})."""
+    """Maximum-likelihood noise model of a fixed residual r (see search). Returns (NoiseModel,
+    {kind: loglik})."""
     r = np.asarray(r, float) - np.mean(r)
-    n = len(r)
+
+    def ll_of(q, g2=0.0, phi=0.0):
+        ll, s2u, _ = concentrated_loglik(r, NoiseModel(s2_init, q, g2, phi, dt), starts)
+        return ll, s2u
+
+    m, lls = search(ll_of, len(r), s2_init, dt, ad_fit)
+    return m, {k: v[0] for k, v in lls.items()}
+
+
+def search(ll_of, n, s2_init, dt, ad_fit=None):
+    """Maximum-likelihood noise model given ll_of(q, g2, phi) -> (concentrated log-likelihood,
+    innovation variance) with the white variance fixed at s2_init and the scale concentrated
+    out (so q and g2 are ratios to it): the random walk's ratio by scipy's bounded Brent
+    search; where the Allan fit shows a Gauss-Markov term, its variance ratio and phi too
+    (scipy Nelder-Mead from the Allan fit's values). A term joins the model only when it adds
+    max(TERM_GAIN, BIC's 0.5 ln n) nats per parameter and matters (see material). Returns
+    (NoiseModel, {kind: (loglik, (q, g2, phi) as ratios to s2_init)}) with every kind's
+    maximised log-likelihood: the largest of them is the profile likelihood a
+    likelihood-ratio test compares."""
     s2 = max(float(s2_init), 1e-300)
     fit = ad_fit or {"q": 0.0, "g2": 0.0, "phi": 0.0}
     phi_lo, phi_hi = np.exp(-1.0 / 1.5), np.exp(-1.0 / max(n / 4.0, 3.0))
+    memo = {}
 
-    def ll_of(q, g2=0.0, phi=0.0):
-        return concentrated_loglik(r, NoiseModel(s2, q, g2, phi, dt), starts)[0]
+    def ll(q, g2=0.0, phi=0.0):
+        k = (q, g2, phi)
+        if k not in memo:
+            memo[k] = ll_of(q, g2, phi)
+        return memo[k][0]
 
-    cands = {"white": (ll_of(0.0), (0.0, 0.0, 0.0))}
+    cands = {"white": (ll(0.0), (0.0, 0.0, 0.0))}
     lq_lo = np.log(1e-4 / n ** 2)          # a walk this small moves < 1 % of sigma over the log
-    o = optimize.minimize_scalar(lambda lq: -ll_of(s2 * np.exp(lq)), bounds=(lq_lo, np.log(1e3)),
+    o = optimize.minimize_scalar(lambda lq: -ll(s2 * np.exp(lq)), bounds=(lq_lo, np.log(1e3)),
                                  method="bounded", options={"xatol": 0.05})
     cands["rw"] = (-o.fun, (s2 * np.exp(o.x), 0.0, 0.0))
-    if fit.get("g2", 0) > 0.05 * s2 and fit.get("phi", 0) > 0:
-        def lp(p):
-            return (s2 * np.exp(np.clip(p[0], -40, 12)), s2 * np.exp(np.clip(p[1], -20, 12)),
-                    float(np.clip(1 / (1 + np.exp(-p[2])), phi_lo, phi_hi)))
+    # The Gauss-Markov term is always searched (a model without it would let a walk take
+    # what a correlated but bounded bias does): from the Allan fit's values where it shows
+    # one, else from the best of a few correlation times.
+    def lp(p):
+        return (s2 * np.exp(np.clip(p[0], -40, 12)), s2 * np.exp(np.clip(p[1], -20, 12)),
+                float(np.clip(1 / (1 + np.exp(-p[2])), phi_lo, phi_hi)))
 
-        phi0 = float(np.clip(fit["phi"], phi_lo, phi_hi))
-        p0 = np.array([o.x, np.log(fit["g2"] / s2), np.log(phi0 / (1 - phi0))])
-        o2 = optimize.minimize(lambda p: -ll_of(*lp(p)), p0, method="Nelder-Mead",
-                               options={"xatol": 5e-2, "fatol": 0.1, "maxfev": 60})
-        q, g2, phi = lp(o2.x)
-        cands["rw+gm"] = (-o2.fun, (q, g2, phi))
-        cands["gm"] = (ll_of(0.0, g2, phi), (0.0, g2, phi))
+    starts = []
+    if fit.get("g2", 0) > 0.05 * s2 and fit.get("phi", 0) > 0:
+        starts.append((np.log(fit["g2"] / s2), float(np.clip(fit["phi"], phi_lo, phi_hi))))
+    else:
+        for tc in np.geomspace(5.0, max(6.0, n / 8.0), 4):
+            starts.append((np.log(0.2), float(np.clip(np.exp(-1.0 / tc), phi_lo, phi_hi))))
+    lq0 = o.x if cands["rw"][0] > cands["white"][0] + 0.5 else lq_lo + 2.0
+    p0 = max((np.array([lq0, lg, np.log(ph / (1 - ph))]) for lg, ph in starts),
+             key=lambda p: ll(*lp(p)))
+    o2 = optimize.minimize(lambda p: -ll(*lp(p)), p0, method="Nelder-Mead",
+                           options={"xatol": 5e-2, "fatol": 0.1, "maxfev": 60})
+    q, g2, phi = lp(o2.x)
+    cands["rw+gm"] = (-o2.fun, (q, g2, phi))
+    def gm_only(p):
+        _, g2_, phi_ = lp(np.r_[0.0, p])
+        return -ll(0.0, g2_, phi_)
+
+    o3 = optimize.minimize(gm_only, o2.x[1:], method="Nelder-Mead",
+                           options={"xatol": 5e-2, "fatol": 0.1, "maxfev": 40})
+    _, g2, phi = lp(np.r_[0.0, o3.x])
+    cands["gm"] = (-o3.fun, (0.0, g2, phi))
     nterms = {"white": 0, "rw": 1, "gm": 2, "rw+gm": 3}
     gain = max(TERM_GAIN, 0.5 * np.log(n))     # BIC per parameter, at least TERM_GAIN
 
@@ -395,9 +430,10 @@ def estimate(r, dt, starts, s2_init, ad_fit=None):
             best = kind
     q, g2, phi = cands[best][1]
     m = NoiseModel(s2, q, g2, phi, dt)
-    _, s2u, _ = concentrated_loglik(r, m, starts)
+    ll(q, g2, phi)
+    s2u = memo[(q, g2, phi)][1]
     k = s2u / m.filter()[2]      # the scale the likelihood concentrated out
-    return NoiseModel(s2 * k, q * k, g2 * k, phi, dt), {kk: float(v[0]) for kk, v in cands.items()}
+    return NoiseModel(s2 * k, q * k, g2 * k, phi, dt), {kk: (float(v[0]), v[1]) for kk, v in cands.items()}
 
 
 def gain_z(r0, r1, tau=1.0):

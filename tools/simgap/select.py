@@ -25,10 +25,11 @@ Z_SIG = 4.0          # z of the held-out gain (noise autocorrelation counted) an
 Z_REST = 2.0         # ... and without its best held-out segment the rest still z > 2
 MIN_REL = 0.01       # ... and the held-out sum of squares must drop by at least 1 %
 MIN_NOISE = 0.02     # ... and by at least 2 % of the innovation variance (not a rounding win)
-Z_WANDER = 2.33      # stage B, a confirmatory test of the one winner per axis (one-sided 1 %):
-                     # z of its held-out innovation gain under the noise model re-estimated
-                     # without it (which may wander to explain it), correlation counted
-Z_WANDER_REST = 1.0  # ... and still positive evidence without its best held-out segment
+Z_WANDER = 3.72      # stage B, the likelihood-ratio test of the winner per axis against a
+                     # wandering bias: one-sided p 1e-4 after the shape grid's Bonferroni
+                     # correction (z of that p-value); a log without effects meets ~10 such
+                     # tests (winners per axis and step), so ~1e-3 false claims per log
+ALPHA_INSAMPLE = 1e-3  # stage A's in-sample path: family-wise false-positive rate per step
 RIVAL = 0.8          # a rival this close to the winner, absorbed by it, is not identifiable
 
 # Experiments that separate two effects the data confounds.
@@ -74,6 +75,7 @@ class Greedy:
         self.untried = {}
         self.avail = {}
         self.wander = []                        # (effect, axis, z, kind of wander, shape)
+        self._ncand = 1
         self._noise_cache = {}
         self.noise_info = {}
         for e in EFFECTS:
@@ -92,134 +94,130 @@ class Greedy:
     # -- noise models -------------------------------------------------------------------
 
     def noise_for(self, axis, blocks):
-        """Noise model of the residual of sim + blocks on the training log (effects in): the
-        Allan fit gives the starting values, the likelihood the model; one GLS refit under it
-        and a re-estimate. Cached per block list."""
+        """Noise model of sim + blocks on the training log (effects in) by maximum profile
+        likelihood: for every candidate noise model the effects' coefficients are re-fitted
+        by GLS under it (so a walk and an effect compete for the same slow part), the Allan
+        fit of the ordinary least-squares residual giving the starting values. The Allan
+        deviation reported is the final GLS residual's. Cached per block list."""
         key = (axis, tuple((n, _key(s)) for n, s in blocks))
         if key in self._noise_cache:
             return self._noise_cache[key]
         p = self.prob
         pt = p.train
         dt = p.ctx.dt
-        model = N.NoiseModel.white(self.sigma[axis], dt)
-        info = None
-        for _ in range(2):
-            r = p.full_residual(pt, axis, blocks, model=model)[pt.mask]
-            r = r - np.mean(r)
-            ad = N.allan(r, dt)
-            fit = N.fit_allan(ad)
-            prov = N.NoiseModel(max(fit["s2"], 1e-300), fit["q"], fit["g2"], fit["phi"], dt)
-            st = p.starts(pt, axis, prov)
-            new, lls = N.estimate(r, dt, st, self.sigma[axis] ** 2, fit)
-            info = {"model": new, "allan": ad, "allan_fit": fit, "loglik": lls, "resid": r}
-            if new.is_white and model.is_white:
-                break
-            model = new
+        s2 = self.sigma[axis] ** 2
+        r = p.full_residual(pt, axis, blocks, model=N.NoiseModel.white(self.sigma[axis], dt))[pt.mask]
+        fit = N.fit_allan(N.allan(r - np.mean(r), dt))
+
+        def ll_of(q, g2=0.0, phi=0.0):
+            return p.loglik(axis, blocks, N.NoiseModel(s2, q, g2, phi, dt))
+
+        model, lls = N.search(ll_of, int(pt.mask.sum()), s2, dt, fit)
+        r = p.full_residual(pt, axis, blocks, model=model)[pt.mask]
+        r = r - np.mean(r)
+        ad = N.allan(r, dt)
+        info = {"model": model, "allan": ad, "allan_fit": N.fit_allan(ad),
+                "loglik": {k: v[0] for k, v in lls.items()},
+                "params": [v[1] for v in lls.values()], "s2": s2,
+                "profile": max(v[0] for v in lls.values()), "resid": r}
         self._noise_cache[key] = info
         return info
 
-    def _heldout_noise(self, axis, blocks):
-        """The noise model under which sim + blocks predict the held-out segments best: white,
-        the in-sample maximum-likelihood model, or a random walk whose size maximises the
-        held-out likelihood (scipy's bounded Brent search); the scale is concentrated out on
-        the held-out rows. Returns (loglik per row, innovations, NoiseModel)."""
-        p = self.prob
-        info = self.noise_for(axis, blocks)
-        s2 = max(info["model"].s2, 1e-300)
-        dt = p.ctx.dt
-        memo = {}
-
-        def ho(m):
-            k = m.key()
-            if k not in memo:
-                u = p.evaluate(axis, blocks, withheld=False, model=m)["cv"]
-                v = max(float(np.mean(u * u)), 1e-300)
-                memo[k] = (-0.5 * np.log(2 * np.pi * v) - u * u / (2 * v), u, m)
-            return memo[k]
-
-        cands = [N.NoiseModel(s2, dt=dt), info["model"]]
-        n = len(self.cur[axis]["cv"])
-        o = optimize.minimize_scalar(
-            lambda lq: -float(np.sum(ho(N.NoiseModel(s2, s2 * np.exp(lq), dt=dt))[0])),
-            bounds=(np.log(1e-4 / n ** 2), np.log(10.0)), method="bounded",
-            options={"xatol": 0.3, "maxiter": 12})
-        cands.append(N.NoiseModel(s2, s2 * np.exp(o.x), dt=dt))
-        return max((ho(m) for m in cands), key=lambda r: float(np.sum(r[0])))
-
-    def _wanders_heldout(self, axis, blocks):
-        """Does a wandering noise model predict the held-out segments of sim + blocks better
-        than white noise, by more than BIC's 0.5 ln n nats and by a material amount?"""
-        ll, _, m = self._heldout_noise(axis, blocks)
-        if m.is_white:
-            return False
-        p = self.prob
-        u = p.evaluate(axis, blocks, withheld=False, model=N.NoiseModel(m.s2, dt=m.dt))["cv"]
-        v = max(float(np.mean(u * u)), 1e-300)
-        lw = float(np.sum(-0.5 * np.log(2 * np.pi * v) - u * u / (2 * v)))
-        n = len(u)
-        material = m.q * n / 6 + m.g2 > 0.02 * m.s2
-        return bool(material and float(np.sum(ll)) - lw > 0.5 * np.log(n))
-
-    def _zd(self, d, name):
-        """(z, z without the best held-out segment) of per-row gains d, correlation counted."""
-        tau = N.autocorr_time(d - np.mean(d))
-        sd = float(np.std(d))
-        folds = self.prob.cv_fold
-
-        def z_of(sel):
-            n = int(np.sum(sel))
-            return float(np.sum(d[sel]) / (sd * np.sqrt(n * tau))) if sd > 0 and n else 0.0
-
-        z = z_of(np.ones(len(d), bool))
-        fg = np.array([d[folds == f].sum() for f in range(self.prob.nfold)])
-        rest = folds != int(np.argmax(fg))
-        z_rest = z if BY_NAME[name].per_run else z_of(rest)   # per-run: evidence comes in runs
-        return z, z_rest
+    def _effect_df(self, axis, name, shape):
+        """Free parameters an effect adds on an axis: its columns, or one constant per run
+        beyond the base intercept."""
+        e = BY_NAME[name]
+        if e.per_run:
+            return max(1, len(np.unique(self.prob.runs_m)) - 1)
+        return int(e.columns(self.prob.ctx, self.prob.train, shape, axis).shape[1])
 
     def _wander_check(self, axis, without, with_, name):
-        """Can a wandering bias explain the effect's held-out gain? Two views, either enough:
-        (1) nested: under the noise model re-estimated *without* the effect (its random walk or
-        Gauss-Markov term takes whatever slow part the effect would explain), the effect still
-        shrinks the one-step-ahead innovations of the held-out segments; (2) best against best:
-        the held-out predictive log-likelihood of the model with the effect beats the model
-        without it, each under the noise model that predicts its held-out segments best. The
-        per-row gains must add up significantly (z counting their correlation) and not rest on
-        one segment. A real lag, drift or loop predicts the rows where it acts; a fit to the
-        walk does not. Returns (z, gain in nats, noise info without the effect)."""
-        p = self.prob
+        """Can a wandering bias explain the effect? A likelihood-ratio test in the state-space
+        model: the profile likelihood of sim + with_ against sim + without, each maximised
+        over its own noise model (white, random walk, Gauss-Markov: whatever slow part the
+        effect would explain, the walk may take instead). Under no effect, twice the gain is
+        chi-squared with the effect's free parameters as degrees of freedom; the shape was
+        the best of the family's grid, so the p-value is Bonferroni-corrected for the grid.
+        Returns (z, gain in nats, noise info without the effect): z is the normal deviate
+        of the corrected p-value, compared with Z_WANDER."""
+        shape = with_[-1][1] if with_ and with_[-1][0] == name else dict(with_)[name]
         i0 = self.noise_for(axis, without)
-        m0 = i0["model"]
-        e0 = p.evaluate(axis, without, withheld=False, model=m0)
-        e1 = p.evaluate(axis, with_, withheld=False, model=m0)
-        s2 = max(e0["s2"], 1e-300)
-        d = (e0["cv"] ** 2 - e1["cv"] ** 2) / (2 * s2)
-        z, z_rest = self._zd(d, name)
-        best = (z if z_rest >= Z_WANDER_REST else min(z, z_rest), float(np.sum(d)))
-        if best[0] < Z_WANDER:
-            l0, _, _ = self._heldout_noise(axis, without)
-            l1, _, _ = self._heldout_noise(axis, with_)
-            d2 = l1 - l0
-            z2, z2_rest = self._zd(d2, name)
-            v = z2 if z2_rest >= Z_WANDER_REST else min(z2, z2_rest)
-            if v > best[0]:
-                best = (v, float(np.sum(d2)))
-        return best[0], best[1], i0
+        i1 = self.noise_for(axis, with_)
+        # Each model also at the other's maximising noise parameters: the searches are local
+        # (and a Gauss-Markov term is searched where its own Allan fit shows one), so this
+        # keeps the two maxima comparable - the nested model never beats the larger one.
+        dt = self.prob.ctx.dt
+
+        def best(info, other, blocks):
+            ll = info["profile"]
+            for q, g2, phi in other["params"]:
+                f = info["s2"] / other["s2"] if other["s2"] > 0 else 1.0
+                m = N.NoiseModel(info["s2"], q * f, g2 * f, phi, dt)
+                ll = max(ll, self.prob.loglik(axis, blocks, m)[0])
+            return ll
+
+        gain = float(best(i1, i0, with_) - best(i0, i1, without))
+        df = self._effect_df(axis, name, shape)
+        grid = max(1, len(BY_NAME[name].shapes_given(self.prob.ctx, without)))
+        p = min(1.0 - 1e-12, float(stats.chi2.sf(2 * max(gain, 0.0), df)) * grid)
+        z = float(stats.norm.isf(max(p, 1e-300)))     # finite: p is capped below 1
+        return z, gain, i0
 
     # -- stage A ----------------------------------------------------------------------
 
     def _try(self, name, axis):
-        """Best shape of one effect on one axis and its held-out innovations over the current
-        state, under the axis's current (saturated) noise model."""
+        """Best shape of one effect on one axis over the current state, under the axis's
+        current (saturated) noise model: the shape is a model order, chosen by BIC of the GLS
+        fit (its in-sample innovations' likelihood less 0.5 ln n per column) - not by the
+        held-out segments, which cannot judge an effect that lives in one of them (a warm-up
+        after the log's one power-on). Returns the trial with its held-out innovations."""
         e = BY_NAME[name]
         best = None
         self.prob.prime(axis, self.state[axis])
-        for shape in e.shapes_given(self.prob.ctx, self.state[axis]):
+        shapes = e.shapes_given(self.prob.ctx, self.state[axis])
+        for shape in shapes:
             res = self.prob.evaluate(axis, self.state[axis] + [(name, shape)], withheld=False)
-            ss = float(np.sum(res["cv"] ** 2))
-            if best is None or ss < best[0]:
-                best = (ss, shape, res)
-        _, shape, res = best
-        return {"name": name, "shape": shape, "res": res}
+            n = len(res["ins"])
+            df = self._effect_df(axis, name, shape)
+            bic = 0.5 * n * np.log(max(float(np.sum(res["ins"] ** 2)), 1e-300)) + 0.5 * df * np.log(n)
+            if best is None or bic < best[0]:
+                best = (bic, shape, res, df)
+        _, shape, res, df = best
+        return {"name": name, "shape": shape, "res": res, "df": df, "grid": len(shapes)}
+
+    def _localised(self, name, i0, i1):
+        """Does one held-out segment hold most of the evidence for the effect? True when more
+        than half of the change it makes to the in-sample innovations (its fitted part after
+        the whitening filter) lies in one segment - a settling after the log's one
+        power-on, say: the other segments cannot predict it, so held-out prediction cannot
+        judge it, and the in-sample likelihood ratio does (stage B and the withheld log then
+        judge it like any other)."""
+        if BY_NAME[name].per_run:
+            return False
+        d2 = (i0 - i1) ** 2
+        tot = float(np.sum(d2))
+        if tot <= 0:
+            return False
+        folds = self.prob.fold_m
+        return bool(max(float(np.sum(d2[folds == f])) for f in range(self.prob.nfold)) > 0.5 * tot)
+
+    def _refine(self, axis, others, name, shape):
+        """The shape's continuous parameter (time constant, width) by maximum likelihood of
+        the GLS fit under the axis's noise model, between the grid's neighbours (scipy's
+        bounded Brent search): a grid spaced by 2x leaves a warm-up or a lag mis-timed by
+        up to 40 %, which shows as a residual of its own."""
+        c = BY_NAME[name].continuous(self.prob.ctx, shape)
+        if c is None:
+            return shape
+        x0, lo, hi, build = c
+        model = self.prob.noise[axis]
+
+        def f(x):
+            return -self.prob.loglik(axis, others + [(name, build(x))], model)[0]
+
+        o = optimize.minimize_scalar(f, bounds=(lo, hi), method="bounded",
+                                     options={"xatol": 0.02, "maxiter": 14})
+        return build(o.x) if o.fun < f(x0) else shape
 
     def _judge(self, v, axis, tau, sd):
         """Significance of one trial. The gain sum(r0^2 - r1^2) = sum(delta (2 r1 + delta)) is
@@ -245,11 +243,23 @@ class Greedy:
         z_rest = z_of(rest) if rest.any() else 0.0
         s2 = float(v["res"]["s2"])
         per_run = BY_NAME[v["name"]].per_run
-        significant = bool(z > Z_SIG and (z_rest > Z_REST or per_run) and ss0 - ss1 > MIN_REL * ss0
-                           and ss0 - ss1 > MIN_NOISE * len(r0) * s2)
+        heldout = bool(z > Z_SIG and (z_rest > Z_REST or per_run) and ss0 - ss1 > MIN_REL * ss0
+                       and ss0 - ss1 > MIN_NOISE * len(r0) * s2)
+        # An effect whose information one held-out segment holds (see _localised) is judged
+        # in-sample under the same noise model instead: the likelihood ratio of the GLS fits
+        # (chi-squared with the effect's columns as degrees of freedom), Bonferroni-corrected
+        # for the shape grid and for every effect x axis tried at this step.
+        i0, i1 = self.cur[axis]["ins"], v["res"]["ins"]
+        lr = 0.5 * len(i0) * np.log(max(float(np.sum(i0 ** 2)), 1e-300) /
+                                    max(float(np.sum(i1 ** 2)), 1e-300))
+        p_lr = float(stats.chi2.sf(2 * max(lr, 0.0), v["df"])) * v["grid"] * self._ncand
+        local = self._localised(v["name"], i0, i1)
+        significant = (p_lr < ALPHA_INSAMPLE) if local else heldout
+        score = 2 * lr if local else (ss0 - ss1) / max(s2, 1e-300)
         v.update(cv_before=r0, rms_before=float(np.sqrt(ss0 / len(r0))), rms_after=float(np.sqrt(ss1 / len(r1))),
-                 t=z, p=float(stats.norm.sf(z)), z_rest=z_rest, tau=tau,
-                 significant=significant, score=(ss0 - ss1) / max(s2, 1e-300))
+                 t=z, p=float(stats.norm.sf(z)), z_rest=z_rest, tau=tau, lr_insample=float(lr),
+                 p_insample=min(1.0, p_lr), heldout_significant=heldout, local=local,
+                 significant=significant, score=score)
         return v
 
     def _saturated(self, trials, axis):
@@ -294,6 +304,7 @@ class Greedy:
                     self.cur = {a: self.prob.evaluate(a, self.state[a], withheld=False)
                                 for a in range(3)}
                     trials = {n: {a: self._try(n, a) for a in ax} for n, ax in pool.items() if ax}
+            self._ncand = max(1, sum(len(tr) for tr in trials.values()))
             for a in range(3):
                 if not any(a in tr for tr in trials.values()):
                     continue
@@ -322,15 +333,12 @@ class Greedy:
                                             any(w["significant"] for w in trials[win].values()))
                 if not take:
                     continue
+                shape = self._refine(a, self.state[a], win, v["shape"])
+                if not _same_shape(shape, v["shape"]):
+                    v.update(shape=shape, res=self.prob.evaluate(a, self.state[a] + [(win, shape)],
+                                                                 withheld=False))
                 with_ = self.state[a] + [(win, v["shape"])]
-                if not self._wanders_heldout(a, with_):
-                    # With the effect in, the held-out segments hold no wander: no random walk
-                    # is there to explain the effect (a walk estimated without it was the
-                    # effect itself; judged held-out, so a shape that soaks up a walk in-sample
-                    # does not hide it).
-                    z, gain, i0 = np.inf, float(v["score"]) / 2, None
-                else:
-                    z, gain, i0 = self._wander_check(a, self.state[a], with_, win)
+                z, gain, i0 = self._wander_check(a, self.state[a], with_, win)
                 v.update(z_wander=z, loglik_gain=gain)
                 if z < Z_WANDER:
                     rejected[(win, a)] = len(self.state[a])
@@ -359,11 +367,13 @@ class Greedy:
         return chosen
 
     def refine(self, passes=2):
-        """Re-choose each added effect's shape with the others in place: greedy order fixed
-        the first effect's shape while the second was still missing."""
+        """Re-choose each added effect's shape with the others in place (BIC on the grid, then
+        the continuous parameter by maximum likelihood): greedy order fixed the first
+        effect's shape while the second was still missing."""
         for a in range(3):
             if len(self.state[a]) < 2:
                 continue
+            n = len(self.cur[a]["ins"])
             for _ in range(passes):
                 changed = False
                 for i, (name, shape) in enumerate(list(self.state[a])):
@@ -371,14 +381,13 @@ class Greedy:
                     best = None
                     others = self.state[a][:i] + self.state[a][i + 1:]
                     for sh in e.shapes_given(self.prob.ctx, others):
-                        blocks = list(self.state[a])
-                        blocks[i] = (name, sh)
-                        res = self.prob.evaluate(a, blocks, withheld=False)
-                        ss = float(np.sum(res["cv"] ** 2))
-                        if best is None or ss < best[0]:
-                            best = (ss, sh)
-                    if not _same_shape(best[1], shape):
-                        self.state[a][i] = (name, best[1])
+                        ll, _ = self.prob.loglik(a, others + [(name, sh)], self.prob.noise[a])
+                        bic = -ll + 0.5 * self._effect_df(a, name, sh) * np.log(n)
+                        if best is None or bic < best[0]:
+                            best = (bic, sh)
+                    sh = self._refine(a, others, name, best[1])
+                    if not _same_shape(sh, shape):
+                        self.state[a][i] = (name, sh)
                         changed = True
                 if not changed:
                     break
@@ -391,8 +400,6 @@ class Greedy:
         removed = []
         for a in range(3):
             while self.state[a]:
-                if self.noise_for(a, self.state[a])["model"].is_white:
-                    break       # no wander left with the chosen effects in: nothing to explain them
                 worst = None
                 for i, (name, shape) in enumerate(self.state[a]):
                     without = self.state[a][:i] + self.state[a][i + 1:]
