@@ -13,6 +13,7 @@ scored by tools/gapbench/wandercheck.py, which says its own targets):
 """
 import argparse
 import json
+import multiprocessing
 import os
 import sys
 import tempfile
@@ -48,10 +49,45 @@ def score_case(lab):
             "shrink_ok": ratio <= SHRINK_TARGET, "where_ok": where_ok}
 
 
-def run(seed=1, full=True, outdir=None):
+def run(seed=1, full=True, outdir=None, jobs=1):
     with tempfile.TemporaryDirectory() as tmp:
         labels = gapgen.write_benchmark(outdir or tmp, seed, full)
-        return [score_case(lab) for lab in labels]
+        if jobs <= 1:
+            return [score_case(lab) for lab in labels]
+        with multiprocessing.Pool(jobs) as pool:
+            return pool.map(score_case, labels, chunksize=1)
+
+
+def sweep(seeds, full=True, outdir=None, jobs=1):
+    """run() at every seed: {seed: rows}, printed seed by seed, then the table: per case, the
+    seeds where it met every target, and the seeds where every case did."""
+    out = {}
+    for s in seeds:
+        rows = run(s, full, outdir and os.path.join(outdir, "seed%d" % s), jobs)
+        out[s] = rows
+        bad = [r["case"] for r in rows if not (r["attributed"] and r["shrink_ok"] and r["where_ok"])]
+        print("seed %d: %s" % (s, "every target met" if not bad else "missed " + ", ".join(
+            "%s (verdict %s, %.2fx)" % (r["case"], ",".join(r["verdict"]) or "-", r["ratio"])
+            for r in rows if r["case"] in bad)), flush=True)
+    return out
+
+
+def sweep_table(by_seed):
+    seeds = sorted(by_seed)
+    cases = [r["case"] for r in by_seed[seeds[0]]]
+    L = ["gen set over %d seed(s): per case, seeds meeting every target (named / alone or nothing "
+         "claimed, withheld RMS <= 1.25x the floor, where) and the worst RMS ratio" % len(seeds)]
+    for c in cases:
+        rs = [next(r for r in by_seed[s] if r["case"] == c) for s in seeds]
+        ok = [r["attributed"] and r["shrink_ok"] and r["where_ok"] for r in rs]
+        miss = [str(s) for s, k in zip(seeds, ok) if not k]
+        L.append("  %-32s %2d/%d  named %2d/%d  rms ok %2d/%d  worst %.2fx%s" % (
+            c, sum(ok), len(ok), sum(r["attributed"] for r in rs), len(rs),
+            sum(r["shrink_ok"] for r in rs), len(rs), max(r["ratio"] for r in rs),
+            ("  missed at seed " + ",".join(miss)) if miss else ""))
+    allok = sum(passed(by_seed[s]) for s in seeds)
+    L.append("seeds meeting every target on every case: %d/%d" % (allok, len(seeds)))
+    return "\n".join(L)
 
 
 def summary(rows):
@@ -91,22 +127,32 @@ def main(argv=None):
     ap.add_argument("--small", action="store_true", help="gen: the reduced case set")
     ap.add_argument("--seed", type=int, default=1, help="gen: the seed (default 1)")
     ap.add_argument("--keep", help="write the cases here instead of a temporary directory")
-    ap.add_argument("--seeds", default="1-20", help="wander: seeds, e.g. 1-20 or 3,7 (default 1-20)")
+    ap.add_argument("--seeds", help="seeds, e.g. 1-20 or 3,7 (wander: default 1-20; gen: instead of "
+                                    "--seed, with a table of how many seeds meet every target)")
     ap.add_argument("--logs", type=int, default=3, help="wander: logs per situation per seed (default 3)")
     ap.add_argument("--situations", help="wander: comma-separated subset of %s" % ",".join(wander.SITUATIONS))
     ap.add_argument("--jobs", type=int, default=min(2, os.cpu_count() or 1),
-                    help="wander: diagnoses run in parallel (default min(2, cores))")
+                    help="diagnoses run in parallel (default min(2, cores); gen: with --seeds)")
     ap.add_argument("--json", help="wander: write every log's scores here")
     ap.add_argument("-v", "--verbose", action="store_true", help="wander: one line per log as it finishes")
     a = ap.parse_args(argv)
     ok = True
     if a.which in ("gen", "both"):
-        rows = run(a.seed, not a.small, a.keep and os.path.join(a.keep, "gen"))
-        print(summary(rows))
-        ok &= passed(rows)
+        if a.seeds:
+            try:
+                gseeds = wandercheck.parse_seeds(a.seeds)
+            except ValueError as e:
+                ap.error(str(e))
+            by_seed = sweep(gseeds, not a.small, a.keep and os.path.join(a.keep, "gen"), a.jobs)
+            print(sweep_table(by_seed))
+            ok &= all(passed(r) for r in by_seed.values())
+        else:
+            rows = run(a.seed, not a.small, a.keep and os.path.join(a.keep, "gen"))
+            print(summary(rows))
+            ok &= passed(rows)
     if a.which in ("wander", "both"):
         try:
-            seeds = wandercheck.parse_seeds(a.seeds)
+            seeds = wandercheck.parse_seeds(a.seeds or "1-20")
             sits = wander.SITUATIONS if not a.situations else tuple(a.situations.split(","))
             bad = [s for s in sits if s not in wander.SITUATIONS]
             if bad or a.logs < 1 or a.jobs < 1:
