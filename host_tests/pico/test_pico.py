@@ -112,15 +112,19 @@ from array import array
 from tempcomp import fixedpoint as fp
 burst = %r
 n = %d
+view = memoryview(b'xy' + burst)[2:]
 for mode in (None, False):
     print('NATIVE', fp.use_native(mode))
     c = fp.Compensator(%r, %r, %r, out_scale=1000.0)
+    if mode is None:
+        print('ASM', bool(fp._kernels()._t))  # the asm_thumb batch kernel took the M0+
     res = []
     for t in %r:
         c.update(t)
         one = [0] * (3 * n)
         many = [0] * (3 * n)
         arr = array('i', many)
+        viewed = [0] * (3 * n)
         three = [0, 0, 0]
         b6 = bytearray(6)
         micropython.heap_lock()
@@ -136,13 +140,15 @@ for mode in (None, False):
                 i += 1
             c.apply_be16_n(burst, many, n)
             c.apply_be16_n(burst, arr, n)
+            c.apply_be16_n(view, viewed, n)
         finally:
             micropython.heap_unlock()
-        assert one == many == list(arr)
+        assert one == many == list(arr) == viewed
         res.append(many)
     print('RES', res)
 """ % (burst, n, OFFS, SCS, T_CAL, temps))
     assert values(out, "NATIVE") == [True, False]
+    assert values(out, "ASM") == [True]
     native, pure = values(out, "RES")
     assert native == pure == want
 

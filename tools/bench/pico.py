@@ -47,6 +47,19 @@ micropython.heap_unlock()
 print("INSN real_read_compensated_locked %.1f 1" % (d * 1000.0 / 200))
 """
 
+# the batch's fixed cost per call and its loop per sample: one sample a call and 64 (the
+# instruction bench's set-up)
+BATCH_SPLIT = r"""
+from tempcomp import fixedpoint as fp
+floor()
+c = fp.Compensator(%(offs)r, %(scs)r, %(t_cal)r, out_scale=1000.0)
+c.update(1234)
+for n in (1, 64):
+    buf = bytearray(b"\x80\x00\x12\x34\x7f\xff" * n)
+    out = [0] * (3 * n)
+    insn("batch_call_%%d" %% n, c.apply_be16_n, (buf, out, n), 100)
+"""
+
 BOOT_HEAP = r"""
 import gc
 gc.collect()
@@ -68,6 +81,8 @@ ROWS = [
     ("apply_be16", "3-axis compensated sample, apply_be16 (native kernels)"),
     ("apply_be16_pure", "same, forced pure Python"),
     ("apply_be16_n", "batch apply_be16_n, per sample (32 per call)"),
+    ("batch_fixed", "  its fixed cost per call (argument checks, the calls)"),
+    ("batch_loop", "  its loop, per sample"),
     ("apply_be16_n_pure", "batch, forced pure Python, per sample"),
     ("float_naive", "anchor: naive float 3-axis sample"),
     ("float_careful", "anchor: careful float 3-axis sample"),
@@ -79,11 +94,14 @@ ROWS = [
 
 def measure(pico):
     got = {}
-    for code in (instructions.HARNESS + instructions.CORE % dict(
-            offs=instructions.OFFS, scs=instructions.SCS, t_cal=instructions.T_CAL, batch=instructions.BATCH),
-            instructions.HARNESS + MPU_REAL):
+    setup = dict(offs=instructions.OFFS, scs=instructions.SCS, t_cal=instructions.T_CAL, batch=instructions.BATCH)
+    for code in (instructions.HARNESS + instructions.CORE % setup, instructions.HARNESS + BATCH_SPLIT % setup,
+                 instructions.HARNESS + MPU_REAL):
         net, _ = instructions.parse(pico.run(code, timeout=1800))
         got.update({k: v * CYCLES_PER_NS for k, v in net.items()})
+    if "batch_call_1" in got:
+        got["batch_loop"] = (got["batch_call_64"] - got["batch_call_1"]) / 63
+        got["batch_fixed"] = got["batch_call_1"] - got["batch_loop"]
     return got
 
 
