@@ -207,3 +207,51 @@ def test_power_cuts_during_a_store_save_restore_old_or_new(pico):
         if "op" in r["cut"]:
             assert r["torn"] is not None and r["torn"]["done"] < r["torn"]["len"], r
     assert seen == {old, new}  # cuts before and after the commit point both happened
+
+
+def test_a_new_module_level_name_under_heap_lock_is_what_raised_memoryerror(pico):
+    # The MemoryError a bench loop met under heap_lock() on the Pico (tools/bench/pico.py, the
+    # read_compensated loop): not the library but the script's own names. At module level a name
+    # is a key of the globals table (py/map.c: open addressing, grown only when every slot is
+    # taken, to the next of 2, 4, ... 12, 17, 23, 29, 37 slots), so storing a NEW name under the
+    # lock (the loop's time difference, with 23 globals) must grow it and allocate. An existing
+    # name or a function's locals never do.
+    out = pico.run(r"""
+import micropython
+code = compile('''
+micropython.heap_lock()
+try:
+    try:
+        old = 2
+        res[0] = 'old ok'
+        new = 1
+        res[1] = 'new ok'
+    except MemoryError:
+        res[1] = 'MemoryError'
+finally:
+    micropython.heap_unlock()
+''', 'probe', 'exec')
+for n in range(4, 40):
+    g = {'micropython': micropython, 'res': [None, None], 'old': 1}
+    i = 0
+    while len(g) < n:
+        g['v%d' % i] = i
+        i += 1
+    exec(code, g)
+    print('TRIAL', (n, g['res'][0], g['res'][1]))
+def inner():
+    micropython.heap_lock()
+    try:
+        a = 1; b = 2; c = 3; d = 4; e = 5; f = 6; g = 7; h = 8
+        return 'locals ok'
+    finally:
+        micropython.heap_unlock()
+print('FN', repr(inner()))
+""")
+    trials = values(out, "TRIAL")
+    assert len(trials) == 36
+    assert all(old == "old ok" for _, old, _ in trials)
+    full = {n for n, _, new in trials if new == "MemoryError"}
+    assert full == {4, 6, 8, 10, 12, 17, 23, 29, 37}, full  # py/map.c's table sizes
+    assert all(new == "new ok" for n, _, new in trials if n not in full)
+    assert values(out, "FN") == ["locals ok"]

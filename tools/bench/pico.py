@@ -34,16 +34,23 @@ out = array("i", [0] * 7)
 raw = array("i", [0] * 7)
 insn("real_read_raw", imu.read_raw, (raw,), 200)
 insn("real_read_compensated", imu.read_compensated, (out,), 200)
+def locked(fn, a, n):
+    # the loop in a function: its names are locals on the C stack. At module level each name is a
+    # key of the script's globals table, and a new one stored under heap_lock() (the time
+    # difference, say) raises MemoryError when that table is full and must grow; the unlock
+    # in finally, because a heap left locked kills the rp2 firmware at its next soft reset
+    micropython.heap_lock()
+    try:
+        i = 0
+        t0 = time.ticks_us()
+        while i < n:
+            fn(a)
+            i += 1
+        return time.ticks_diff(time.ticks_us(), t0)
+    finally:
+        micropython.heap_unlock()
 gc.collect()
-fn = imu.read_compensated
-i = 0
-micropython.heap_lock()
-t0 = time.ticks_us()
-while i < 200:
-    fn(out)
-    i += 1
-d = time.ticks_diff(time.ticks_us(), t0)
-micropython.heap_unlock()
+d = locked(imu.read_compensated, out, 200)
 print("INSN real_read_compensated_locked %.1f 1" % (d * 1000.0 / 200))
 """
 
@@ -84,11 +91,20 @@ ROWS = [
     ("batch_fixed", "  its fixed cost per call (argument checks, the calls)"),
     ("batch_loop", "  its loop, per sample"),
     ("apply_be16_n_pure", "batch, forced pure Python, per sample"),
-    ("float_naive", "anchor: naive float 3-axis sample"),
+    ("float_driver", "anchor: a typical driver's float 3-axis sample"),
+    ("float_driver_update", "  its per-temperature polynomials"),
+    ("float_naive", "anchor: naive float, both polynomials per sample"),
     ("float_careful", "anchor: careful float 3-axis sample"),
     ("real_read_raw", "MPU-6xxx read_raw through the real I2C (400 kHz)"),
     ("real_read_compensated", "MPU-6xxx read_compensated through the real I2C"),
     ("real_read_compensated_locked", "same, the loop under heap_lock()"),
+]
+
+
+ALLOC_ROWS = [
+    ("apply_be16", "heap per call, apply_be16 (native)"),
+    ("apply_be16_pure", "heap per call, apply_be16 pure Python"),
+    ("float_driver", "heap per call, the typical driver's float sample"),
 ]
 
 
@@ -97,8 +113,9 @@ def measure(pico):
     setup = dict(offs=instructions.OFFS, scs=instructions.SCS, t_cal=instructions.T_CAL, batch=instructions.BATCH)
     for code in (instructions.HARNESS + instructions.CORE % setup, instructions.HARNESS + BATCH_SPLIT % setup,
                  instructions.HARNESS + MPU_REAL):
-        net, _ = instructions.parse(pico.run(code, timeout=1800))
+        net, extra = instructions.parse(pico.run(code, timeout=1800))
         got.update({k: v * CYCLES_PER_NS for k, v in net.items()})
+        got.update({k: v for k, v in extra.items() if k.startswith("ALLOC ")})
     if "batch_call_1" in got:
         got["batch_loop"] = (got["batch_call_64"] - got["batch_call_1"]) / 63
         got["batch_fixed"] = got["batch_call_1"] - got["batch_loop"]
@@ -135,9 +152,13 @@ def bench(report):
         for key, label in ROWS:
             if key in got:
                 print("  %-66s %10s cycles" % (label, "{:,.0f}".format(got[key])), flush=True)
+        for key, label in ALLOC_ROWS:
+            if "ALLOC " + key in got:
+                print("  %-66s %10.1f bytes" % (label, got["ALLOC " + key]), flush=True)
         heap = [line.split()[1:] for line in pico.run(BOOT_HEAP).splitlines() if line.startswith("HEAP")][0]
         report("Pico: 3-axis apply_be16 (native), cycles beyond the loop", got["apply_be16"], "cycles")
-        report("Pico: same, pure Python / naive float", got["apply_be16_pure"] / got["float_naive"], "x")
+        report("Pico: same, pure Python / a typical driver's float sample",
+               got["apply_be16_pure"] / got["float_driver"], "x")
         report("Pico: batch apply_be16_n, per sample", got["apply_be16_n"], "cycles")
         report("Pico: read_compensated / read_raw through the real I2C",
                got["real_read_compensated"] / got["real_read_raw"], "x")

@@ -126,12 +126,13 @@ class PicoInterp:
         from mpremote.transport import TransportError
 
         t = self.transport
-        t.enter_raw_repl(soft_reset=True)
         try:
+            t.enter_raw_repl(soft_reset=True)
             t.exec_raw_no_follow("import sys\nsys.path[:] = ['', '/vmtest', '/lib']\ndel sys\n" + code)
             out, err = t.follow(timeout)
-        except TransportError as e:
-            raise InterpError("[pico] %s" % e) from None
+        except (TransportError, OSError) as e:
+            # the board's log says why (a firmware that stopped names where)
+            raise InterpError("[pico] %s\n%s" % (e, "".join(self.board.lines[-20:]))) from None
         out = out.replace(b"\r\n", b"\n").decode(errors="replace")
         if err:
             raise InterpError("[pico] script raised:\n%s\n%s" % (out, err.replace(b"\r\n", b"\n").decode(errors="replace")))
