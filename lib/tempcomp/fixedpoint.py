@@ -927,7 +927,7 @@ class Compensator:
         # Here: self, buf, out, p, s, v and at most 5 stack slots. k is 15 here (K for a raw
         # range centred on 0). Bound: |v*g| <= 2**28, |(v*l) >> 15| < 2**15,
         # |c| <= 2**29 + 2**23: sum < 2**30.
-        p = self._p3
+        p: list = self._p3  # type: ignore[assignment]  # set when this method is bound
         s = p[10]
         v = ((buf[0] << 8 | buf[1]) ^ 0x8000) - 0x8000
         out[0] = (v * p[0] + ((v * p[1]) >> 15) - p[2]) >> s
