@@ -53,7 +53,8 @@ export async function loadWorld({ scenario = "steady", profile = "", timeScale =
     spiExchange: (bus, byte, ns) => pb.spi_exchange(bus, byte, us(ns)),
     adcRead: (ch, ns) => pb.adc(ch, us(ns)),
     reset: (ns) => pb.reset(us(ns)),
-    world: (src, ns) => String(pb.world(src, us(ns))),
+    // a world control request (control.mjs, checked there) as JSON text; the answer as JSON text
+    control: (req, ns) => String(pb.control(req, us(ns))),
     clockUs: () => Math.round(Number(pb.clock_s()) * 1e6),
   };
 }
