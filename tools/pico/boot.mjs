@@ -20,7 +20,9 @@ export function boardPins(file = path.join(REPO, "boards", "pico.py")) {
     if (!m) throw new Error(`${file}: no ${name}`);
     return Number(m[1]);
   };
-  return { i2cId: num("I2C_ID"), sda: num("I2C_SDA"), scl: num("I2C_SCL"), cs: num("MLX_CS") };
+  const div = /^ADC_DIVIDER\s*=\s*([0-9.]+)/m.exec(text);
+  return { i2cId: num("I2C_ID"), sda: num("I2C_SDA"), scl: num("I2C_SCL"), cs: num("MLX_CS"),
+    adcDivider: div ? Number(div[1]) : 1.0 };
 }
 
 export async function loadFirmware(dir = FW_DIR) {
@@ -47,6 +49,9 @@ export async function bootPico({ image, world = {}, onSerial = () => {}, log = (
   const wired = bus.csPins();
   if (!wired.includes(pins.cs)) {
     throw new Error(`boards/pico.py has the MLX90609's CS on GP${pins.cs}, the world wires it to ${wired}`);
+  }
+  if (bus.adcDivider() !== pins.adcDivider) {
+    throw new Error(`boards/pico.py has ADC_DIVIDER = ${pins.adcDivider}, the world's analog gyro a 1:${bus.adcDivider()} divider`);
   }
   const make = () => {
     const p = new Pico({ firmware: fw.firmware, bootrom: fw.bootrom, image, bus, onSerial, symbolAt: fw.symbolAt });

@@ -53,6 +53,11 @@ def cs_pins():
     return ",".join(str(p) for p in sorted(board._cs))
 
 
+def adc_divider():
+    # the analog gyro's divider on this PCB (boards/pico.py must say the same: boot.mjs)
+    return vboard_sensors.ADXRS_DIVIDER
+
+
 def pin(p, level, s):
     _at(s)
     board.pin_write(p, level)
