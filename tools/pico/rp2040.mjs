@@ -106,12 +106,20 @@ export class Pico {
   // ------------------------------------------------------------ flash
 
   loadImage(path) {
+    // never through a link: a name in build/pico replaced by a symlink (to ~/.bashrc, say)
+    // must not have the flash written into its target (as the VM board's flash directory)
+    const C = fs.constants;
     let fd;
     try {
-      fd = fs.openSync(path, "r+");
+      fd = fs.openSync(path, C.O_RDWR | C.O_NOFOLLOW);
     } catch (e) {
+      if (e.code === "ELOOP") throw new Error(`${path} is a symbolic link: the flash image is not written through links`);
       if (e.code !== "ENOENT") throw e;
-      fd = fs.openSync(path, "w+");
+      fd = fs.openSync(path, C.O_RDWR | C.O_CREAT | C.O_EXCL | C.O_NOFOLLOW, 0o600);
+    }
+    if (!fs.fstatSync(fd).isFile()) {
+      fs.closeSync(fd);
+      throw new Error(`${path} is not a regular file: not a flash image`);
     }
     const size = fs.fstatSync(fd).size;
     if (size !== FS_BYTES) {
