@@ -99,6 +99,8 @@ def test_narrow_signed_range_keeps_full_int16_words_in_bound(axes):
     bind(comp, ["_gh", "_gl", "_b", "_s", "_half", "_mid", "_k"])
     if comp._p3 is not None:
         bind(comp, ["_p3"])
+    if comp._q0 is not None:
+        bind(comp, ["_q0", "_q1", "_q2"])  # the pure 3-axis path's numbers per axis
     words = (-32768, 32767, -8193, 8192, 0)
     buf = bytearray()
     for w in words[:3]:
