@@ -6,11 +6,14 @@ The compensation scripts are the instruction bench's (tools/bench/instructions.p
 loops net of the empty loop, best of 3 after gc.collect()), run on the real rp2 firmware with
 tempcomp deployed as ``make deploy`` installs it; simulated time is exact, so ``ticks_us()`` over n
 calls gives 125 cycles per microsecond. ``read_compensated`` and ``read_raw`` go through the real
-I2C peripheral (400 kHz, each byte's time on the wire) to the simulated MPU-6500. The power-cut
+I2C peripheral (400 kHz, each byte's time on the wire) to the simulated MPU-6500. The augmented
+model's rows run tools/bench/augment.py's firmware script (base model, every term on) on the
+library as it is in this tree. The power-cut
 sweep cuts a store save at >= 200 points spread through its flash operations and reboots after
 each (tools/pico/cut.mjs); every restore must give the old or the new calibration.
 """
 
+import json
 import random
 import time
 
@@ -122,6 +125,22 @@ def measure(pico):
     return got
 
 
+def augmented(pico):
+    """{name: (unpack floor, reading unchanged, reading changing)} cycles per 3-axis sample of
+    the augmented model (tools/bench/augment.py's models and firmware script: the base model and
+    every term on), as lib/tempcomp/augment.py is in this tree."""
+    from tools.bench import augment
+    from tools.bench.core import UNPACK_FLOOR
+
+    res = {}
+    for name, m in (("base", augment.model([])), ("every term", augment.model(list(augment.TERMS)))):
+        out = pico.run(augment.FW_BENCH % {"model": json.dumps(m), "n": 200, "pad": 0, "unpack": UNPACK_FLOOR},
+                       timeout=1800)
+        line = [ln for ln in out.splitlines() if ln.startswith("INSN ")][0]
+        res[name] = tuple(int(v) * CYCLES_PER_NS for v in line.split()[1:])
+    return res
+
+
 def sweep(pico, n=200, seed=1):
     from tools.board import picoctl
     ref = picoctl.cut_sweep(pico.flash, STORE_SETUP, STORE_SAVE, STORE_CHECK, [])["reference"]
@@ -155,11 +174,19 @@ def bench(report):
         for key, label in ALLOC_ROWS:
             if "ALLOC " + key in got:
                 print("  %-66s %10.1f bytes" % (label, got["ALLOC " + key]), flush=True)
+        aug = augmented(pico)
+        for name in ("base", "every term"):
+            fl, r0, r1 = aug[name]
+            print("  %-66s %10s cycles" % ("augmented model, %s, temperature reading unchanged" % name,
+                                           "{:,.0f}".format(r0)), flush=True)
+            print("  %-66s %10s cycles" % ("  same, reading changing every sample", "{:,.0f}".format(r1)), flush=True)
         heap = [line.split()[1:] for line in pico.run(BOOT_HEAP).splitlines() if line.startswith("HEAP")][0]
         report("Pico: 3-axis apply_be16 (native), cycles beyond the loop", got["apply_be16"], "cycles")
         report("Pico: same, pure Python / a typical driver's float sample",
                got["apply_be16_pure"] / got["float_driver"], "x")
         report("Pico: batch apply_be16_n, per sample", got["apply_be16_n"], "cycles")
+        report("Pico: augmented model, every term, reading changing / a typical driver's float sample",
+               aug["every term"][2] / got["float_driver"], "x")
         report("Pico: read_compensated / read_raw through the real I2C",
                got["real_read_compensated"] / got["real_read_raw"], "x")
         report("Pico: heap at boot (free of total)", float(heap[1]) / 1024, "KB of %.0f KB" % (float(heap[0]) / 1024))
