@@ -315,34 +315,33 @@ def test_augmented_model_bit_identical_to_cpython_under_heap_lock(pico):
     m = every_term_model()
     inp, feats = inputs(m, n=60, seed=4)
     rows = np.column_stack([inp["t"], inp["dt_ms"], inp["raw"], inp["supply"], inp["acc"]]).astype(int).tolist()
+    flat = [v for r in rows for v in r]  # t, dt_ms, raw x3, supply, acc x3 per row
     out = pico.run("""
 import micropython
 from array import array
 from tempcomp.augment import Augmented
-a = Augmented(%s)
-ROWS = %s
-res = array('i', bytes(4 * 3 * len(ROWS)))
-raw = array('i', [0, 0, 0]); out = array('i', [0, 0, 0]); acc = array('i', [0, 0, 0])
-ap = a.apply
-def run(lo, hi):
-    i = lo
-    while i < hi:
-        r = ROWS[i]
-        raw[0] = r[2]; raw[1] = r[3]; raw[2] = r[4]
-        acc[0] = r[6]; acc[1] = r[7]; acc[2] = r[8]
-        ap(r[0], raw, out, r[1], r[5], acc)
-        res[3 * i] = out[0]; res[3 * i + 1] = out[1]; res[3 * i + 2] = out[2]
-        i += 1
-def locked(lo, hi):
-    micropython.heap_lock()
-    try:
-        run(lo, hi)
-    finally:
-        micropython.heap_unlock()
-run(0, 2)  # first-call caches
-locked(2, len(ROWS))
+ap = Augmented(%s).apply
+rows = array('i', %r)
+n = len(rows) // 9
+res = array('i', bytes(12 * n))
+three = [array('i', [0, 0, 0]) for _ in range(3)]  # raw, out, acc
+def span(lo, hi):
+    raw, o, acc = three
+    while lo < hi:
+        b = 9 * lo
+        raw[0] = rows[b + 2]; raw[1] = rows[b + 3]; raw[2] = rows[b + 4]
+        acc[0] = rows[b + 6]; acc[1] = rows[b + 7]; acc[2] = rows[b + 8]
+        ap(rows[b], raw, o, rows[b + 1], rows[b + 5], acc)
+        res[3 * lo] = o[0]; res[3 * lo + 1] = o[1]; res[3 * lo + 2] = o[2]
+        lo += 1
+span(0, 2)  # first-call caches
+micropython.heap_lock()
+try:
+    span(2, n)
+finally:
+    micropython.heap_unlock()
 print('RES', list(res))
-""" % (json.dumps(m), json.dumps(rows)))
+""" % (json.dumps(m), flat))
     (got,), = [values(out, "RES")]
     a = Augmented(m)
     want = []
