@@ -1,0 +1,788 @@
+"""Native kernel of ``tempcomp.augment``: an ``Augmented`` model's per-sample path and per-reading
+step in @micropython.viper, on the word array its set-up lays out, with the general sample's
+body in asm_thumb (``tempcomp.augment_thumb``) where the port has the inline assembler.
+
+Imported by ``augment`` on first use where the interpreter has the viper emitter and 32-bit ints
+(MicroPython firmware on Cortex-M); elsewhere the import fails and augment's pure-Python kernel
+runs. The arithmetic is the pure kernel's (``Augmented._apply`` and ``_step``, ``_general``,
+``fixedpoint.Compensator.update``), operation for operation: every intermediate is proven within
++-2**30 there (augment's and fixedpoint's module notes), so 32-bit machine words never wrap and the
+results are bit-identical to Python's unbounded integers.
+
+The per-sample entry is the class method ``Augmented.apply`` (this module's ``apply``): a method
+called as ``aug.apply(...)`` passes its seven arguments without copying them to the heap, and
+the kernel reaches no module globals (each would cost a globals swap on every call); the step,
+the clock and the sample's body are found through ``self``.
+"""
+
+# ruff: noqa: F821
+# pyright: reportUndefinedVariable=false, reportAttributeAccessIssue=false, reportIndexIssue=false
+# pyright: reportOptionalSubscript=false, reportOperatorIssue=false, reportArgumentType=false
+# (ptr8/ptr32/int/uint casts are viper built-ins)
+
+import array
+
+import micropython
+from micropython import const
+
+from tempcomp.native import int32
+
+# augment's layout (the same names and values there; host_tests/augment checks they agree)
+_CL = const(0)
+_XS = const(1)
+_TS = const(2)
+_SUPS = const(3)
+_AS = const(4)
+_UPT = const(7)
+_MID = const(8)
+_LIM = const(9)
+_KB = const(10)
+_S2 = const(11)
+_RND = const(12)
+_NTAU = const(13)
+_PTAU = const(14)
+_NPLAY = const(15)
+_PPLAY = const(16)
+_NSF = const(17)
+_PSF = const(18)
+_FL = const(19)
+_O = const(22)
+_SCL = const(25)
+_FILT = const(26)
+_TC = const(32)
+_TLO = const(33)
+_THI = const(34)
+_DTC = const(35)
+_NB = const(37)
+_STR = const(38)
+_ROFF = const(39)
+_AOFF = const(40)
+_TOFF = const(41)
+_CRAW = const(42)
+_COUT = const(43)
+_CACC = const(44)
+_NTF = const(45)
+_PTF = const(46)
+_DTI = const(47)
+_PUPD = const(48)
+_NHYP = const(49)
+_PHYP = const(50)
+_CBOUT = const(52)
+_CBACC = const(53)
+_AXB = const(54)
+_AXS = const(22)
+_GH = const(0)
+_GL = const(1)
+_B = const(2)
+_RHO = const(3)
+_DS = const(4)
+_ES = const(5)
+_FO = const(6)
+_HG = const(7)
+_OT = const(8)
+_GT = const(9)
+_CR = const(10)
+_Y0 = const(11)
+_INV = const(12)
+_Y = const(13)
+_KM = const(14)
+_RAW = const(17)
+_SOT = const(18)
+_SGT = const(19)
+_RS = const(20)
+_RR = const(21)
+_TREC = const(30)
+_FREC = const(6)
+_OSUB = const(0)
+_OSUBC = const(1)
+_OMUL = const(2)
+_UREC = const(30)
+_FUP = const(1)
+_FFILT = const(2)
+_FSTART = const(4)
+_FRHO = const(16)
+_FCROSS = const(32)
+_FGEN = const(64)
+_FACC = const(128)
+_FDT = const(256)
+_FSUP = const(512)
+_FBURST = const(1024)
+_ONE = const(1 << 28)
+_FMAX = const(32767)
+_DT_MAX = const((1 << 26) - 1)
+_UP_MAX = const((1 << 30) - (1 << 26) + 1)  # uptime + dt stays below it: (1 << 30) - _DT_MAX
+
+_BUFFERS = (bytes, bytearray, memoryview, array.array)
+
+
+def words(a, n):
+    """True when a is an array of at least n 32-bit two's-complement ints."""
+    return type(a) is array.array and len(a) >= n and int32(a)
+
+
+def buffer(a):
+    """True when a is a buffer the burst path may read bytes from."""
+    return isinstance(a, _BUFFERS)
+
+
+@micropython.viper
+def note(w, slot: int, a):
+    """Store the buffer address of array a in word slot of w."""
+    ptr32(w)[slot] = int(ptr32(a))
+
+
+@micropython.viper
+def _address(a) -> int:
+    return int(ptr32(a))
+
+
+def address(a):
+    """The buffer address of array a as an int where it is a small int (RAM below 2**30, as on
+    Cortex-M), else a itself: the kernel casts either to the same pointer, the int for less."""
+    try:
+        v = _address(a)
+    except OverflowError:  # a port without long ints
+        return a
+    return v if -0x40000000 <= v < 0x40000000 else a
+
+
+@micropython.viper
+def apply(self, t: int, raw, out, dt_ms, supply, acc):
+    """Augmented.apply (and apply_be16_n's burst when the flags say so), word for word the pure
+    kernel's ``Augmented._apply``."""
+    w = ptr32(self._wp)
+    fl = w[_FL]
+    rp = ptr32(0)
+    op = ptr32(0)
+    if not (fl & (_FGEN | _FBURST)):
+        # the base model alone: the shortest path
+        try:
+            rp = ptr32(raw)
+            op = ptr32(out)
+        except TypeError:
+            self._bind(raw, out, acc, 0)
+            return
+        if int(rp) != w[_CRAW] or int(op) != w[_COUT]:
+            # arrays not seen before: checked once (a list or a 16-bit array is refused by name)
+            self._bind(raw, out, acc, 0)
+        if t < w[_TLO]:
+            t = w[_TLO]
+            w[_CL] = w[_CL] + 1
+        elif t > w[_THI]:
+            t = w[_THI]
+            w[_CL] = w[_CL] + 1
+        if t != w[_TC]:
+            self._nstep(t)
+        mid = w[_MID]
+        lim = w[_LIM]
+        kb = w[_KB]
+        s2 = w[_S2]
+        rnd = w[_RND] + (2 << s2)  # the output's rounding folded in: ((y + rnd) >> s2 + 2) >> 2
+        s2 += 2
+        r = rp[0] - mid
+        if r > lim:
+            r = lim
+            w[_CL] = w[_CL] + 1
+        elif r < 0 - lim:
+            r = 0 - lim
+            w[_CL] = w[_CL] + 1
+        op[0] = (r * w[_AXB + _GH] + ((r * w[_AXB + _GL]) >> kb) - w[_AXB + _B] + rnd) >> s2
+        r = rp[1] - mid
+        if r > lim:
+            r = lim
+            w[_CL] = w[_CL] + 1
+        elif r < 0 - lim:
+            r = 0 - lim
+            w[_CL] = w[_CL] + 1
+        op[1] = (r * w[_AXB + _AXS + _GH] + ((r * w[_AXB + _AXS + _GL]) >> kb) - w[_AXB + _AXS + _B] + rnd) >> s2
+        r = rp[2] - mid
+        if r > lim:
+            r = lim
+            w[_CL] = w[_CL] + 1
+        elif r < 0 - lim:
+            r = 0 - lim
+            w[_CL] = w[_CL] + 1
+        op[2] = (r * w[_AXB + 2 * _AXS + _GH] + ((r * w[_AXB + 2 * _AXS + _GL]) >> kb) - w[_AXB + 2 * _AXS + _B] + rnd) >> s2
+        return
+    nb = 1
+    st = 0
+    ro = 0
+    ao = -1
+    to = -1
+    if fl & _FBURST:
+        fl &= ~_FBURST
+        w[_FL] = fl
+        nb = w[_NB]
+        st = w[_STR]
+        ro = w[_ROFF]
+        ao = w[_AOFF]
+        to = w[_TOFF]
+    ra = fl & _FACC
+    if ao >= 0:
+        ra = 0
+    bp = ptr8(0)
+    ap = ptr32(0)
+    try:
+        if st:
+            bp = ptr8(raw)
+        else:
+            rp = ptr32(raw)
+        op = ptr32(out)
+        if ra:
+            ap = ptr32(acc)
+    except TypeError:
+        self._bind(raw, out, acc, st)
+        return
+    if st:
+        ok = int(op) == w[_CBOUT]
+        if ok and ra:
+            ok = int(ap) == w[_CBACC]
+    else:
+        ok = int(op) == w[_COUT] and int(rp) == w[_CRAW]
+        if ok and ra:
+            ok = int(ap) == w[_CACC]
+    if not ok:
+        self._bind(raw, out, acc, st)
+    body = self._body  # the sample's body: augment_thumb.body, or vbody below
+    wp = self._wp
+    dt = 0
+    if fl & _FDT:
+        dt = int(dt_ms)
+    if fl & _FSUP:
+        w[_SUPS] = int(supply)
+    i = 0
+    j = 0
+    while i < nb:
+        if st:
+            p = j + ro
+            r0 = ((bp[p] << 8 | bp[p + 1]) ^ 0x8000) - 0x8000
+            r1 = ((bp[p + 2] << 8 | bp[p + 3]) ^ 0x8000) - 0x8000
+            r2 = ((bp[p + 4] << 8 | bp[p + 5]) ^ 0x8000) - 0x8000
+            if to >= 0:
+                p = j + to
+                t = ((bp[p] << 8 | bp[p + 1]) ^ 0x8000) - 0x8000
+        else:
+            r0 = rp[0]
+            r1 = rp[1]
+            r2 = rp[2]
+        if fl & _FACC:
+            if ao >= 0:
+                p = j + ao
+                w[_AS] = ((bp[p] << 8 | bp[p + 1]) ^ 0x8000) - 0x8000
+                w[_AS + 1] = ((bp[p + 2] << 8 | bp[p + 3]) ^ 0x8000) - 0x8000
+                w[_AS + 2] = ((bp[p + 4] << 8 | bp[p + 5]) ^ 0x8000) - 0x8000
+            else:
+                w[_AS] = ap[0]
+                w[_AS + 1] = ap[1]
+                w[_AS + 2] = ap[2]
+        d = 0
+        if fl & _FDT:
+            d = dt
+            if d < 0:
+                d = int(self._ticks())
+            if d > _DT_MAX:
+                d = _DT_MAX
+            if fl & _FUP:
+                u = w[_UPT] + d
+                if u < _UP_MAX:
+                    w[_UPT] = u
+        if t < w[_TLO]:
+            t = w[_TLO]
+            w[_CL] = w[_CL] + 1
+        elif t > w[_THI]:
+            t = w[_THI]
+            w[_CL] = w[_CL] + 1
+        if t != w[_TC]:
+            self._nstep(t)
+        x = t << 12
+        w[_XS] = x
+        w[_FILT] = 0
+        if fl & _FFILT:
+            if not (w[_FL] & _FSTART):
+                # the first reading after a power-on (augment._start_filters)
+                w[_FL] = w[_FL] | _FSTART
+                q = ptr32(int(w) + (w[_PTAU] << 2))
+                n = w[_NTAU]
+                while n:
+                    if not q[0]:
+                        q[2] = x
+                    q = ptr32(int(q) + _TREC * 4)
+                    n -= 1
+                q = ptr32(int(w) + (w[_PPLAY] << 2))
+                n = w[_NPLAY]
+                while n:
+                    li = q[1]
+                    if li < 0:
+                        q[2] = x
+                    else:
+                        q[2] = w[li]
+                    q = ptr32(int(q) + 12)
+                    n -= 1
+            else:
+                if d != w[_DTC]:
+                    # alpha(dt) = 1 - prod_k (1 - alpha(2**k)) over dt's set bits (augment._alphas)
+                    w[_DTC] = d
+                    q = ptr32(int(w) + (w[_PTAU] << 2))
+                    n = w[_NTAU]
+                    while n:
+                        a = 0
+                        k = 4
+                        e = d
+                        while e:
+                            if e & 1:
+                                b = q[k]
+                                ah = a >> 14
+                                al = a & 0x3FFF
+                                bh = b >> 14
+                                bl = b & 0x3FFF
+                                a = a + b - (ah * bh + ((ah * bl + al * bh + ((al * bl) >> 14)) >> 14))
+                            e >>= 1
+                            k += 1
+                        q[1] = a
+                        q = ptr32(int(q) + _TREC * 4)
+                        n -= 1
+                w[_FILT] = 1
+        n = w[_NHYP]
+        q = ptr32(int(w) + (w[_PHYP] << 2))
+        while n:
+            a = q[1]
+            w[q[0]] = (a << 14) // (a + (w[_UPT] >> q[2]))
+            q = ptr32(int(q) + 12)
+            n -= 1
+        body(wp, r0, r1, r2)
+        q = ptr32(int(op) + 12 * i)
+        q[0] = w[_O]
+        q[1] = w[_O + 1]
+        q[2] = w[_O + 2]
+        i += 1
+        j += st
+
+
+@micropython.viper
+def vbody(wp, r0: int, r1: int, r2: int):
+    """augment._general: the filters' step, the features, per axis y0 and 1 / (1 + rho e), the
+    cross-axis solve; outputs in _O (where the port has no asm_thumb, augment_thumb.body)."""
+    w = ptr32(wp)
+    cl = w[_CL] + w[_SCL]
+    x = w[_XS]
+    if w[_FILT]:
+        q = ptr32(int(w) + (w[_PTAU] << 2))
+        n = w[_NTAU]
+        while n:
+            # v += alpha * (target - v), exact to 2**-16 of a unit (carry in q[3])
+            a = q[1]
+            v = q[2]
+            if q[0]:
+                e = 0 - v
+            else:
+                e = x - v
+            ah = a >> 14
+            al = a & 0x3FFF
+            dh = e >> 14
+            dl = e & 0x3FFF
+            m = ah * dl + al * dh
+            lo = ((m & 0x3FFF) << 14) + al * dl
+            s = q[3] + ((lo & 0xFFFFFFF) >> 12)
+            q[2] = v + ah * dh + (m >> 14) + (lo >> 28) + (s >> 16)
+            q[3] = s & 0xFFFF
+            q = ptr32(int(q) + _TREC * 4)
+            n -= 1
+        q = ptr32(int(w) + (w[_PPLAY] << 2))
+        n = w[_NPLAY]
+        while n:
+            h = q[0]
+            li = q[1]
+            xi = x
+            if li >= 0:
+                xi = w[li]
+            if xi - h > q[2]:
+                q[2] = xi - h
+            elif xi + h < q[2]:
+                q[2] = xi + h
+            q = ptr32(int(q) + 12)
+            n -= 1
+    # the sample's features (augment._features)
+    n = w[_NSF]
+    q = ptr32(int(w) + (w[_PSF] << 2))
+    while n:
+        k = q[0]
+        a = w[q[2]]
+        b = q[3]
+        if k == _OSUBC:
+            v = a - b
+        elif k == _OSUB:
+            v = a - w[b]
+        elif k == _OMUL:
+            v = a * w[b]
+        else:
+            v = a >> b
+        b = q[4]
+        if v > b:
+            v = b
+            cl += 1
+        elif v < 0 - b:
+            v = 0 - b
+            cl += 1
+        k = q[5]
+        if k < 0:
+            v <<= 0 - k
+        elif k:
+            v = (v + (1 << (k - 1))) >> k
+            if v > _FMAX:
+                v = _FMAX
+            elif v < 0 - _FMAX:
+                v = 0 - _FMAX
+        w[q[1]] = v
+        q = ptr32(int(q) + _FREC * 4)
+        n -= 1
+    mid = w[_MID]
+    lim = w[_LIM]
+    ax = 0
+    while ax < 3:
+        xb = ptr32(int(w) + ((_AXB + _AXS * ax) << 2))
+        if ax == 0:
+            r = r0
+        elif ax == 1:
+            r = r1
+        else:
+            r = r2
+        xb[_RAW] = r
+        e = xb[_DS]
+        q = ptr32(int(w) + (xb[_OT] << 2))
+        n = q[0]
+        while n:
+            c = q[2]
+            f = w[q[1]]
+            e += ((c >> 14) * f + (((c & 0x3FFF) * f) >> 14)) >> 1
+            q = ptr32(int(q) + 8)
+            n -= 1
+        k = xb[_FO]
+        f = (e >> (k - 8)) & 0xFF
+        r = r - mid - (e >> k)
+        if r > lim:
+            r = lim
+            cl += 1
+        elif r < 0 - lim:
+            r = 0 - lim
+            cl += 1
+        g = xb[_GH]
+        xb[_Y0] = (r * g + ((r * xb[_GL]) >> w[_KB]) - xb[_B] - ((f * g) >> 8) + w[_RND]) >> w[_S2]
+        if xb[_HG]:
+            e = xb[_ES]
+            q = ptr32(int(w) + (xb[_GT] << 2))
+            n = q[0]
+            while n:
+                c = q[2]
+                f = w[q[1]]
+                e += ((c >> 14) * f + (((c & 0x3FFF) * f) >> 14)) >> 1
+                q = ptr32(int(q) + 8)
+                n -= 1
+            a = xb[_RHO]
+            ah = a >> 14
+            al = a & 0x3FFF
+            bh = e >> 14
+            bl = e & 0x3FFF
+            e = ah * bh + ((ah * bl + al * bh + ((al * bl) >> 14)) >> 14)
+            # 1 / (1 + e) = 1 - e (1 - e (1 - e (1 - e))), |e| <= 1/8
+            a = _ONE - e
+            ah = e >> 14
+            al = e & 0x3FFF
+            n = 3
+            while n:
+                bh = a >> 14
+                bl = a & 0x3FFF
+                a = _ONE - (ah * bh + ((ah * bl + al * bh + ((al * bl) >> 14)) >> 14))
+                n -= 1
+            xb[_INV] = a
+            a = xb[_Y0]
+            b = xb[_INV]
+            ah = a >> 14
+            al = a & 0x3FFF
+            bh = b >> 14
+            bl = b & 0x3FFF
+            xb[_Y] = ah * bh + ((ah * bl + al * bh + ((al * bl) >> 14)) >> 14)
+        else:
+            xb[_Y] = xb[_Y0]
+        ax += 1
+    w[_CL] = cl
+    if w[_FL] & _FCROSS:
+        # y = (y0 - K y) / (1 + e), two steps from y0 / (1 + e) (augment._general)
+        it = 2
+        while it:
+            ax = 0
+            while ax < 3:
+                xb = ptr32(int(w) + ((_AXB + _AXS * ax) << 2))
+                s = xb[_Y0]
+                q = ptr32(int(w) + (xb[_CR] << 2))
+                n = q[0]
+                while n:
+                    k = q[1]
+                    a = xb[_KM + k]
+                    b = w[_AXB + _AXS * k + _Y]
+                    ah = a >> 14
+                    al = a & 0x3FFF
+                    bh = b >> 14
+                    bl = b & 0x3FFF
+                    s -= ah * bh + ((ah * bl + al * bh + ((al * bl) >> 14)) >> 14)
+                    q = ptr32(int(q) + 12)
+                    n -= 1
+                if xb[_HG]:
+                    b = xb[_INV]
+                    ah = s >> 14
+                    al = s & 0x3FFF
+                    bh = b >> 14
+                    bl = b & 0x3FFF
+                    s = ah * bh + ((ah * bl + al * bh + ((al * bl) >> 14)) >> 14)
+                w[_O + ax] = s
+                ax += 1
+            w[_AXB + _Y] = w[_O]
+            w[_AXB + _AXS + _Y] = w[_O + 1]
+            w[_AXB + 2 * _AXS + _Y] = w[_O + 2]
+            it -= 1
+    w[_O] = (w[_AXB + _Y] + 2) >> 2
+    w[_O + 1] = (w[_AXB + _AXS + _Y] + 2) >> 2
+    w[_O + 2] = (w[_AXB + 2 * _AXS + _Y] + 2) >> 2
+
+
+@micropython.viper
+def step(self, t: int):
+    """Augmented._step (as the method _nstep): what depends on the reading t alone (clamped
+    already), with Compensator.update's arithmetic for the base."""
+    w = ptr32(self._wp)
+    kb = w[_KB]
+    fl = w[_FL]
+    ax = 0
+    while ax < 3:
+        xb = ptr32(int(w) + ((_AXB + _AXS * ax) << 2))
+        u = w[_PUPD] + _UREC * ax
+        fd = w[u]
+        if fd >= 0:
+            # Compensator.update's constant-scale axis: its offset term by Horner's rule
+            b = w[u + 2]
+            if fd:
+                x = (t - w[u + 18]) << w[u + 19]
+                hs = w[u + 20]
+                a = w[u + 2 + fd]
+                while True:
+                    a = ((a >> 14) * x + (((a & 0x3FFF) * x) >> 14)) >> hs
+                    fd -= 1
+                    if not fd:
+                        break
+                    a += w[u + 2 + fd]
+                sh = w[u + 1]
+                if sh >= 0:
+                    b += a >> sh
+                else:
+                    b += a << (0 - sh)
+            xb[_B] = b
+        else:
+            # the scale d + e / 2**14 (Poly.eval_ext) and the offset o (Poly.eval)
+            k = w[u + 6]
+            if k == 0:
+                d = w[u + 12]
+                e = w[u + 13]
+            else:
+                x = (t - w[u + 7]) << w[u + 8]
+                hs = w[u + 9]
+                v = w[u + 13 + k]
+                while True:
+                    v = ((v >> 14) * x + (((v & 0x3FFF) * x) >> 14)) >> hs
+                    k -= 1
+                    if not k:
+                        break
+                    v += w[u + 13 + k]
+                vs = w[u + 10]
+                lo = v & w[u + 11]
+                if vs >= 14:
+                    lo >>= vs - 14
+                else:
+                    lo <<= 14 - vs
+                lo += w[u + 13]
+                e = lo & 0x3FFF
+                d = w[u + 12] + (v >> vs) + (lo >> 14)
+            k = w[u + 17]
+            if k == 0:
+                o = w[u + 23]
+            else:
+                x = (t - w[u + 18]) << w[u + 19]
+                hs = w[u + 20]
+                v = w[u + 23 + k]
+                while True:
+                    v = ((v >> 14) * x + (((v & 0x3FFF) * x) >> 14)) >> hs
+                    k -= 1
+                    if not k:
+                        break
+                    v += w[u + 23 + k]
+                o = w[u + 23] + ((v + w[u + 22]) >> w[u + 21])
+            wg = w[u + 27]
+            wx = w[u + 28] - 7
+            g = 0
+            b = 0
+            if wg >= 0 and wx >= 0:
+                # the quick division by the top 20 bits dh, ten bits a step, corrected for
+                # the rest f / 2**21 of a unit of dh (fixedpoint's _div_wide and _corr21)
+                dh = d >> 7
+                f = ((d & 0x7F) << 14) + e
+                k = 0
+                while k < 2:
+                    if k == 0:
+                        num = 1 << 28
+                        ex = wg
+                    else:
+                        num = o
+                        ex = wx
+                    q = num // dh
+                    r = num - q * dh
+                    while ex >= 10:
+                        r <<= 10
+                        c = r // dh
+                        r -= c * dh
+                        q = (q << 10) + c
+                        ex -= 10
+                    if ex:
+                        r <<= ex
+                        c = r // dh
+                        q = (q << ex) + c
+                    if f:
+                        x = f >> 14
+                        y = f & 0x3FFF
+                        qh = q >> 14
+                        ql = q & 0x3FFF
+                        c = ((qh * x) << 7) + ((ql * x) >> 7)
+                        c += (qh * y + ((ql * y) >> 14)) >> 7
+                        q -= c // dh
+                    if k == 0:
+                        g = q
+                    else:
+                        b = q
+                    k += 1
+            else:
+                # the plain long division, three bits a step (fixedpoint's div_pow2)
+                k = 0
+                while k < 2:
+                    if k == 0:
+                        ex = w[u + 29]
+                        num = 1 << 28
+                        if ex <= 28:
+                            num = 1 << ex
+                            ex = 0
+                        else:
+                            ex -= 28
+                    else:
+                        num = o
+                        ex = w[u + 28]
+                    q = num // d
+                    r = num - q * d
+                    while ex > 0:
+                        s = 3
+                        if ex < 3:
+                            s = ex
+                        r <<= s
+                        c = r // d
+                        r -= c * d
+                        q = (q << s) + c
+                        ex -= s
+                    if e:
+                        q -= ((q >> 14) * e + (((q & 0x3FFF) * e) >> 14)) // d
+                    if k == 0:
+                        g = q
+                    else:
+                        b = q
+                    k += 1
+            g = (g + 1) >> 1
+            xb[_GH] = g >> kb
+            xb[_GL] = g & ((1 << kb) - 1)
+            xb[_B] = b
+        if fl & _FRHO:
+            # rho = (G << s) * R / 2**26 (augment._mul26), G = gain * 2**(K+S) >> 2
+            a = (((xb[_GH] << kb) + xb[_GL]) >> 2) << xb[_RS]
+            b = xb[_RR]
+            ah = a >> 14
+            al = a & 0x3FFF
+            bh = b >> 14
+            bl = b & 0x3FFF
+            xb[_RHO] = 4 * ah * bh + ((ah * bl + al * bh + ((al * bl) >> 14)) >> 12)
+        ax += 1
+    w[_TC] = t
+    if not (fl & _FGEN):
+        return
+    w[_TS] = t
+    n = w[_NTF]
+    rq = ptr32(int(w) + (w[_PTF] << 2))
+    cl = 0
+    while n:
+        # dT (w[_TS] - t0) and products of step features
+        a = rq[2]
+        b = rq[3]
+        if rq[0] == _OSUBC:
+            v = w[a] - b
+        else:
+            v = w[a] * w[b]
+        b = rq[4]
+        if v > b:
+            v = b
+            cl += 1
+        elif v < 0 - b:
+            v = 0 - b
+            cl += 1
+        sh = rq[5]
+        if sh < 0:
+            v <<= 0 - sh
+        elif sh:
+            v = (v + (1 << (sh - 1))) >> sh
+            if v > _FMAX:
+                v = _FMAX
+            elif v < 0 - _FMAX:
+                v = 0 - _FMAX
+        w[rq[1]] = v
+        rq = ptr32(int(rq) + _FREC * 4)
+        n -= 1
+    w[_SCL] = cl
+    dtf = 0
+    if w[_DTI] >= 0:
+        dtf = w[w[_DTI]]
+    ax = 0
+    while ax < 3:
+        xb = ptr32(int(w) + ((_AXB + _AXS * ax) << 2))
+        k = 0
+        while k < 2:
+            if k == 0:
+                p = xb[_SOT]
+            else:
+                p = xb[_SGT]
+            n = w[p]
+            e = 0
+            while n:
+                c = w[p + 2]
+                f = w[w[p + 1]]
+                e += ((c >> 14) * f + (((c & 0x3FFF) * f) >> 14)) >> 1
+                p += 2
+                n -= 1
+            if k == 0:
+                xb[_DS] = e
+            else:
+                xb[_ES] = e
+            k += 1
+        p = xb[_CR]
+        n = w[p]
+        a = xb[_RHO]
+        ah = a >> 14
+        al = a & 0x3FFF
+        while n:
+            c = w[p + 3]
+            b = w[p + 2] + (((c >> 14) * dtf + (((c & 0x3FFF) * dtf) >> 14)) >> 1)
+            bh = b >> 14
+            bl = b & 0x3FFF
+            xb[_KM + w[p + 1]] = ah * bh + ((ah * bl + al * bh + ((al * bl) >> 14)) >> 14)
+            p += 3
+            n -= 1
+        ax += 1
+
+
+body = vbody  # the general sample's body: asm_thumb where the port has the inline assembler
+try:
+    from tempcomp import augment_thumb
+
+    body = augment_thumb.body
+except (ImportError, SyntaxError, ValueError, NotImplementedError, AttributeError):
+    pass
