@@ -272,29 +272,37 @@ _O = const(22)  # the sample's outputs (3 words)
 _SCL = const(25)  # clamps of the step features at reading _TC, counted again every sample
 _FILT = const(26)  # 1: the filters step with this sample (not its first)
 _SCR = const(27)  # scratch for the asm kernel (5 words)
-_TC = const(32)  # the reading the step values are for (t_lo - 1: none yet)
-_TLO = const(33)
-_THI = const(34)
-_DTC = const(35)  # the dt (ms) the filters' alphas are for (-1: none yet)
-_LAST = const(36)  # ticks_ms at the last sample taken with dt_ms = -1
-_NB = const(37)  # apply_be16_n: samples in the burst
-_STR = const(38)  # burst layout: stride, byte offsets of the raw, acc and temperature words
-_ROFF = const(39)
-_AOFF = const(40)
-_TOFF = const(41)
-_CRAW = const(42)  # buffer addresses of the arrays the native kernel has checked
-_COUT = const(43)
-_CACC = const(44)
-_NTF = const(45)  # step features (dT and products of them): count, first record
-_PTF = const(46)
-_DTI = const(47)  # the dT feature's value (the cross terms' temperature part), -1: none
-_PUPD = const(48)  # native: the base update's integers, _UREC words per axis
-_NHYP = const(49)  # drift_hyp values: count, first record (value index, tau >> e, e)
-_PHYP = const(50)
-_NEED = const(51)  # bytes of a burst sample the layout reads
-_CBOUT = const(52)  # the burst's checked arrays (as _COUT, _CACC for single samples)
-_CBACC = const(53)
-_AXB = const(54)  # the per-axis blocks, _AXS words each:
+_SRC = const(32)  # the asm kernel's run (words 32..43 from a second base): the source's address,
+_OUTP = const(33)  # the outputs' address, samples left, the source's kind (0: int32 words, 1: a
+_NS = const(34)  # burst's big-endian int16 bytes at a stride)
+_MODE = const(35)
+_STR = const(36)  # burst layout: stride, byte offsets of the raw and acc words (temperature: _TOFF)
+_ROFF = const(37)
+_AOFF = const(38)
+_DTR = const(39)  # the ms each sample adds to the uptime, -1: no uptime to count
+_HASF = const(40)  # 1: the model has filters (they step from a run's second sample on)
+_NHYP = const(41)  # drift_hyp values: count, first record (value index, tau >> e, e)
+_PHYP = const(42)
+_UPMAX = const(43)  # the uptime saturates below it: 2**30 - _DT_MAX
+_TC = const(44)  # the reading the step values are for (t_lo - 1: none yet)
+_TLO = const(45)
+_THI = const(46)
+_DTC = const(47)  # the dt (ms) the filters' alphas are for (-1: none yet)
+_LAST = const(48)  # ticks_ms at the last sample taken with dt_ms = -1
+_NB = const(49)  # apply_be16_n: samples in the burst
+_TOFF = const(50)
+_CRAW = const(51)  # buffer addresses of the arrays the native kernel has checked: a sample's,
+_COUT = const(52)
+_CACC = const(53)
+_NTF = const(54)  # step features (dT and products of them): count, first record
+_PTF = const(55)
+_DTI = const(56)  # the dT feature's value (the cross terms' temperature part), -1: none
+_PUPD = const(57)  # native: the base update's integers, _UREC words per axis
+_NEED = const(58)  # bytes of a burst sample the layout reads
+_CBOUT = const(59)  # a burst's
+_CBACC = const(60)
+_SMALL = const(61)  # 1: the array's address is a small int (the kernel passes it as one)
+_AXB = const(62)  # the per-axis blocks, _AXS words each (then words 128..):
 _AXS = const(22)
 _GH = const(0)  # the base gain (high, low limb) and offset term
 _GL = const(1)
@@ -303,7 +311,10 @@ _RHO = const(3)  # s(t0) / s(T), Q28
 _DS = const(4)  # the step features' share of the offset terms (dO) and of e
 _ES = const(5)
 _FO = const(6)  # fraction bits of dO
-_HG = const(7)  # 1: the axis has sensitivity terms
+_AF = const(7)  # the axis' terms: _AGAIN sensitivity, _AOFFS offset, _ACROSS cross-axis
+_AGAIN = const(1)
+_AOFFS = const(2)
+_ACROSS = const(4)
 _OT = const(8)  # where the axis' term lists start: count, then (value index, coefficient)
 _GT = const(9)
 _CR = const(10)  # cross terms: count, then (axis k, k0, k1), one per k
@@ -316,13 +327,16 @@ _SOT = const(18)  # the step features' term lists
 _SGT = const(19)
 _RS = const(20)  # rho: the gain's shift and the reciprocal of the gain at t0
 _RR = const(21)
-_HDR = const(120)  # _AXB + 3 * _AXS
+_CBUF = const(128)  # a burst's checked buffer, its length, the checked out array's length
+_CBUFN = const(129)
+_CBOUTN = const(130)
+_HDR = const(131)
 _TREC = const(30)  # lowpass record: drift flag, alpha, state, carry, then the alpha table
 _FREC = const(6)  # feature record: operation, value index, s1, s2, bound, shift
 _OSUB = const(0)  # the record's operations: w[s1] - w[s2]
 _OSUBC = const(1)  # w[s1] - s2
-_OMUL = const(2)  # w[s1] * w[s2]
-_OSHR = const(3)  # w[s1] >> s2
+_OSHR = const(2)  # w[s1] >> s2
+_OMUL = const(3)  # w[s1] * w[s2]
 _UREC = const(30)  # base update record (augment_native)
 
 _FUP = const(1)  # uptime counts
@@ -357,8 +371,7 @@ def _kernel():
 
                 _kmod = augment_native
                 Augmented.apply = augment_native.apply  # pyright: ignore[reportAttributeAccessIssue]
-                Augmented._nstep = augment_native.step  # pyright: ignore[reportAttributeAccessIssue]
-                Augmented._body = staticmethod(augment_native.body)  # pyright: ignore[reportAttributeAccessIssue]
+                Augmented.apply_be16_n = augment_native.apply_be16_n  # pyright: ignore[reportAttributeAccessIssue]
         except (ImportError, SyntaxError, ValueError, NotImplementedError, AttributeError):
             pass  # CPython, a port without the viper emitter, a .mpy for another architecture
     return _kmod
@@ -549,6 +562,7 @@ class Augmented:
         w[_AOFF] = -1
         w[_TOFF] = -1
         w[_NEED] = 6
+        w[_UPMAX] = (1 << 30) - _DT_MAX
         for i in range(3):
             ab = _AXB + _AXS * i
             w[ab + _GH] = c._gh[i]
@@ -581,16 +595,15 @@ class Augmented:
         w[_NPLAY] = len(plays)
         w[_PPLAY] = len(w)
         for h, li in plays:
-            w.extend([h, w[_PTAU] + _TREC * li + 2 if li >= 0 else -1, 0])
+            w.extend([h, 4 * (w[_PTAU] + _TREC * li + 2) if li >= 0 else -1, 0])
         fv = len(w)  # feature values
         w.extend([0] * nf)
         if dti >= 0:
             w[_DTI] = fv + dti
         hyp = []
         for stp in (False, True):
-            w[_NTF if stp else _NSF] = 0
-            w[_PTF if stp else _PSF] = len(w)
-            for j in range(nf):
+            recs = ([], [], [], [])  # by operation: the asm kernel runs each group without a test;
+            for j in range(nf):  # products come last, in order (they read earlier values)
                 if step[j] != stp:
                     continue
                 k = fk[j]
@@ -601,12 +614,12 @@ class Augmented:
                     op, a, b = _OSUB, _XS, w[_PTAU] + _TREC * a + 2
                 elif k == _PLAY:
                     pl = w[_PPLAY] + 3 * a
-                    op, a, b = _OSUB, pl + 2, w[pl + 1] if w[pl + 1] >= 0 else _XS
+                    op, a, b = _OSUB, pl + 2, w[pl + 1] >> 2 if w[pl + 1] >= 0 else _XS
                 elif k == _DEXP:
                     op, a, b = _OSUBC, w[_PTAU] + _TREC * a + 2, 0
                 elif k == _DHYP:
                     # (tau << 14) // (tau + (uptime >> e)), computed before the records run
-                    hyp.append((fv + j, a, b))
+                    hyp.append((4 * (fv + j), a, b))
                     op, a, b = _OSUBC, fv + j, 0
                 elif k == _UP:
                     op, a, b = _OSHR, _UPT, a
@@ -616,8 +629,14 @@ class Augmented:
                     op, a, b = _OSUBC, _AS + a, 0
                 else:
                     op, a, b = _OMUL, fv + a, fv + b
-                w.extend([op, fv + j, a, b, fbound[j], fsh[j]])
-                w[_NTF if stp else _NSF] += 1
+                # the words' indices as byte offsets (the asm kernel's register-offset loads)
+                recs[op].append([op, 4 * (fv + j), 4 * a, 4 * b if op in (_OSUB, _OMUL) else b, fbound[j], fsh[j]])
+            w[_NTF if stp else _NSF] = sum(len(g) for g in recs)
+            w[_PTF if stp else _PSF] = len(w)
+            w.extend([len(g) for g in recs])
+            for g in recs:
+                for r in g:
+                    w.extend(r)
         w[_NHYP] = len(hyp)
         w[_PHYP] = len(w)
         for r in hyp:
@@ -626,12 +645,12 @@ class Augmented:
             ab = _AXB + _AXS * i
             so, to, sg, tg, fo = terms[i]
             w[ab + _FO] = fo
-            w[ab + _HG] = 1 if sg or tg else 0
+            w[ab + _AF] = (_AGAIN if sg or tg else 0) | (_AOFFS if so or to else 0) | (_ACROSS if cross[i] else 0)
             for slot, lst in ((_OT, so), (_SOT, to), (_GT, sg), (_SGT, tg)):
                 w[ab + slot] = len(w)
                 w.append(len(lst))
                 for fi, cc in lst:
-                    w.extend([fv + fi, cc])
+                    w.extend([4 * (fv + fi), cc >> 14, cc & 0x3FFF])  # the value's byte offset, c's limbs
             w[ab + _CR] = len(w)
             w.append(len(cross[i]))
             for r in cross[i]:
@@ -642,12 +661,13 @@ class Augmented:
                 fl |= _FCROSS
         if taus or plays:
             fl |= _FFILT
+            w[_HASF] = 1
         if fl & (_FUP | _FFILT):
             fl |= _FDT
         if nf or fl & _FRHO:
             fl |= _FGEN
         w[_FL] = fl
-        self._keep = [None] * (_CBACC - _CRAW + 1)  # native: the arrays whose addresses are in _C*
+        self._keep = [None] * (_CBUF - _CRAW + 1)  # native: the arrays whose addresses are in _C*
         self._w = w
         self._wp = w
         if _kernel() is not None:
@@ -658,8 +678,10 @@ class Augmented:
                 # the kernel finds the words through their address (a small int on Cortex-M:
                 # cheaper to convert than the array); the array stays referenced by _w
                 self._wp = _kmod.address(self._w)  # pyright: ignore[reportOptionalMemberAccess]
+                self._w[_SMALL] = 1 if type(self._wp) is int else 0
             else:
-                self.apply = self._apply  # the class holds the native kernel
+                self.apply = self._apply  # the class holds the native kernels
+                self.apply_be16_n = self._apply_be16_n
         self.start(0)
 
     @property
@@ -755,11 +777,8 @@ class Augmented:
         w[_TOFF] = int(temp)
         w[_NEED] = need
 
-    def apply_be16_n(self, t, buf, out, n, dt_ms, supply=0, acc=None):
-        """Compensate a burst: n samples of ``layout()`` in buf (default: 6-byte big-endian raw
-        words), dt_ms apart, into out[3*i + axis]; t, supply and acc hold for the whole burst
-        (unless the layout reads acc or the temperature from each sample). The same numbers as n
-        calls of apply(); zero allocation."""
+    def _check_burst(self, buf, out, n, dt_ms):
+        # apply_be16_n's arguments, by name (both kernels)
         w = self._w
         st = w[_STR]
         if not 0 <= n < 32768 or not 0 <= dt_ms <= _DT_MAX:
@@ -770,7 +789,12 @@ class Augmented:
                              % (n, st, (n - 1) * st + w[_NEED], len(buf)))
         if 3 * n > len(out):
             raise ValueError("apply_be16_n: %d samples need %d outputs, out has %d" % (n, 3 * n, len(out)))
+
+    def _apply_be16_n(self, t, buf, out, n, dt_ms, supply, acc):
+        # apply_be16_n of the pure kernel (the native one is augment_native.apply_be16_n)
+        self._check_burst(buf, out, n, dt_ms)
         if n:
+            w = self._w
             w[_NB] = n
             w[_FL] |= _FBURST
             try:
@@ -778,14 +802,22 @@ class Augmented:
             finally:
                 w[_FL] &= ~_FBURST  # a call refused before the kernel read it leaves no burst behind
 
+    apply_be16_n = _apply_be16_n
+
     def _bind(self, raw, out, acc, burst):
-        # native: note the arrays' buffer addresses once they are checked 32-bit int arrays, or
-        # raise the clear error of a wrong argument (the kernel reads and writes 32-bit words)
+        # native: note the arrays' buffer addresses once they are checked 32-bit int arrays (and a
+        # burst's lengths, so a later call checks them by comparing), or raise the clear error
+        # of a wrong argument (the kernel reads and writes 32-bit words)
         k = _kernel()
         w = self._w
-        if burst and not k.buffer(raw):
-            raise ValueError("apply_be16_n: buf must be bytes, bytearray, memoryview or array, got %s"
-                             % type(raw).__name__)
+        if burst:
+            if not k.buffer(raw):
+                raise ValueError("apply_be16_n: buf must be bytes, bytearray, memoryview or array, got %s"
+                                 % type(raw).__name__)
+            self._check_burst(raw, out, burst, 0)
+            k.note(w, _CBUF, raw)
+            w[_CBUFN] = len(raw)
+            self._keep[_CBUF - _CRAW] = raw
         for name, a, slot in (("out", out, _CBOUT if burst else _COUT), ("raw", raw, _CRAW),
                               ("acc", acc, _CBACC if burst else _CACC)):
             if name == "raw" and burst or name == "acc" and (not w[_FL] & _FACC or burst and w[_AOFF] >= 0):
@@ -794,6 +826,8 @@ class Augmented:
                 raise ValueError("%s must be an array('i') of at least 3 ints (the native kernel reads "
                                  "and writes 32-bit words), got %s" % (name, type(a).__name__))
             k.note(w, slot, a)
+            if slot == _CBOUT:
+                w[_CBOUTN] = len(a)
             # the reference keeps the checked buffer alive, so no other object's takes its address
             self._keep[slot - _CRAW] = a
 
@@ -884,7 +918,7 @@ class Augmented:
                 k = w[_NHYP]
                 while k:
                     a = w[q + 1]
-                    w[w[q]] = (a << 14) // (a + (w[_UPT] >> w[q + 2]))
+                    w[w[q] >> 2] = (a << 14) // (a + (w[_UPT] >> w[q + 2]))
                     q += 3
                     k -= 1
                 _general(w, r0, r1, r2)
@@ -924,7 +958,7 @@ class Augmented:
         if not fl & _FGEN:
             return
         w[_TS] = t
-        w[_SCL] = _features(w, w[_NTF], w[_PTF])
+        w[_SCL] = _features(w, w[_PTF])
         dtf = w[w[_DTI]] if w[_DTI] >= 0 else 0
         for i in range(3):
             ab = _AXB + _AXS * i
@@ -970,7 +1004,7 @@ def _start_filters(w, x):
     n = w[_NPLAY]
     while n:
         li = w[p + 1]
-        w[p + 2] = x if li < 0 else w[li]
+        w[p + 2] = x if li < 0 else w[li >> 2]
         p += 3
         n -= 1
 
@@ -1006,18 +1040,18 @@ def _general(w, r0, r1, r2):
         while n:
             h = w[p]
             li = w[p + 1]
-            xi = x if li < 0 else w[li]
+            xi = x if li < 0 else w[li >> 2]
             if xi - h > w[p + 2]:
                 w[p + 2] = xi - h
             elif xi + h < w[p + 2]:
                 w[p + 2] = xi + h
             p += 3
             n -= 1
-    w[_CL] += _features(w, w[_NSF], w[_PSF])
+    w[_CL] += _features(w, w[_PSF])
     for i in range(3):
         ab = _AXB + _AXS * i
         w[ab + _RAW] = r0 if i == 0 else (r1 if i == 1 else r2)
-        d = _terms(w, w[ab + _OT], w[ab + _DS])
+        d = _terms(w, w[ab + _OT], w[ab + _DS]) if w[ab + _AF] & _AOFFS else 0
         fo = w[ab + _FO]
         # dO = di + fr / 256 raw codes, taken off the raw code and the offset term
         fr = (d >> (fo - 8)) & 0xFF
@@ -1031,7 +1065,7 @@ def _general(w, r0, r1, r2):
             w[_CL] += 1
         g = w[ab + _GH]
         w[ab + _Y0] = (r * g + ((r * w[ab + _GL]) >> w[_KB]) - w[ab + _B] - ((fr * g) >> 8) + w[_RND]) >> w[_S2]
-        if w[ab + _HG]:
+        if w[ab + _AF] & _AGAIN:
             e = _mul28(w[ab + _RHO], _terms(w, w[ab + _GT], w[ab + _ES]))
             # 1 / (1 + e) = 1 - e (1 - e (1 - e (1 - e))) + O(e**5), |e| <= 1/8
             q = _ONE - e
@@ -1041,7 +1075,7 @@ def _general(w, r0, r1, r2):
     for i in range(3):
         ab = _AXB + _AXS * i
         y = w[ab + _Y0]
-        if w[ab + _HG]:
+        if w[ab + _AF] & _AGAIN:
             y = _mul28(y, w[ab + _INV])
         w[ab + _Y] = y
     if w[_FL] & _FCROSS:
@@ -1058,7 +1092,7 @@ def _general(w, r0, r1, r2):
                     s -= _mul28(w[ab + _KM + k], w[_AXB + _AXS * k + _Y])
                     p += 3
                     n -= 1
-                if w[ab + _HG]:
+                if w[ab + _AF] & _AGAIN:
                     s = _mul28(s, w[ab + _INV])
                 w[_O + i] = s
             for i in range(3):
@@ -1077,22 +1111,24 @@ def _mul26(a, b):
     return 4 * ah * bh + ((ah * bl + al * bh + ((al * bl) >> 14)) >> 12)
 
 
-def _features(w, n, p):
-    # the n feature records from p: each value clamped to its bound (counted; returned), then
-    # shifted to at most 2**15 counts
+def _features(w, p):
+    # the feature records at p (after the 4 group counts): each value clamped to its bound
+    # (counted; returned), then shifted to at most 2**15 counts
+    n = w[p] + w[p + 1] + w[p + 2] + w[p + 3]
+    p += 4
     cl = 0
     while n:
         op = w[p]
         a = w[p + 2]
         b = w[p + 3]
         if op == _OSUB:
-            v = w[a] - w[b]
+            v = w[a >> 2] - w[b >> 2]
         elif op == _OSUBC:
-            v = w[a] - b
+            v = w[a >> 2] - b
         elif op == _OMUL:
-            v = w[a] * w[b]
+            v = w[a >> 2] * w[b >> 2]
         else:
-            v = w[a] >> b
+            v = w[a >> 2] >> b
         b = w[p + 4]
         if v > b:
             v = b
@@ -1109,20 +1145,20 @@ def _features(w, n, p):
                 v = _FMAX
             elif v < -_FMAX:
                 v = -_FMAX
-        w[w[p + 1]] = v
+        w[w[p + 1] >> 2] = v
         p += _FREC
         n -= 1
     return cl
 
 
 def _terms(w, p, d):
-    # d plus the sum of mul_shift(c, f, 15) over the list at p: |c| <= 2**28, |f| <= 2**15
+    # d plus the sum of mul_shift(c, f, 15) over the list at p, c by its limbs c >> 14 and
+    # c & 0x3FFF: |c| <= 2**28, |f| <= 2**15
     n = w[p]
     while n:
-        c = w[p + 2]
-        f = w[w[p + 1]]
-        d += ((c >> 14) * f + (((c & 0x3FFF) * f) >> 14)) >> 1
-        p += 2
+        f = w[w[p + 1] >> 2]
+        d += (w[p + 2] * f + ((w[p + 3] * f) >> 14)) >> 1
+        p += 3
         n -= 1
     return d
 

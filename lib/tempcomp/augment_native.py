@@ -49,27 +49,40 @@ _FL = const(19)
 _O = const(22)
 _SCL = const(25)
 _FILT = const(26)
-_TC = const(32)
-_TLO = const(33)
-_THI = const(34)
-_DTC = const(35)
-_NB = const(37)
-_STR = const(38)
-_ROFF = const(39)
-_AOFF = const(40)
-_TOFF = const(41)
-_CRAW = const(42)
-_COUT = const(43)
-_CACC = const(44)
-_NTF = const(45)
-_PTF = const(46)
-_DTI = const(47)
-_PUPD = const(48)
-_NHYP = const(49)
-_PHYP = const(50)
-_CBOUT = const(52)
-_CBACC = const(53)
-_AXB = const(54)
+_SRC = const(32)
+_OUTP = const(33)
+_NS = const(34)
+_MODE = const(35)
+_STR = const(36)
+_ROFF = const(37)
+_AOFF = const(38)
+_DTR = const(39)
+_HASF = const(40)
+_NHYP = const(41)
+_PHYP = const(42)
+_UPMAX = const(43)
+_TC = const(44)
+_TLO = const(45)
+_THI = const(46)
+_DTC = const(47)
+_LAST = const(48)
+_NB = const(49)
+_TOFF = const(50)
+_CRAW = const(51)
+_COUT = const(52)
+_CACC = const(53)
+_NTF = const(54)
+_PTF = const(55)
+_DTI = const(56)
+_PUPD = const(57)
+_NEED = const(58)
+_CBOUT = const(59)
+_CBACC = const(60)
+_SMALL = const(61)
+_AXB = const(62)
+_CBUF = const(128)
+_CBUFN = const(129)
+_CBOUTN = const(130)
 _AXS = const(22)
 _GH = const(0)
 _GL = const(1)
@@ -78,7 +91,10 @@ _RHO = const(3)
 _DS = const(4)
 _ES = const(5)
 _FO = const(6)
-_HG = const(7)
+_AF = const(7)
+_AGAIN = const(1)
+_AOFFS = const(2)
+_ACROSS = const(4)
 _OT = const(8)
 _GT = const(9)
 _CR = const(10)
@@ -95,7 +111,7 @@ _TREC = const(30)
 _FREC = const(6)
 _OSUB = const(0)
 _OSUBC = const(1)
-_OMUL = const(2)
+_OMUL = const(3)
 _UREC = const(30)
 _FUP = const(1)
 _FFILT = const(2)
@@ -172,7 +188,10 @@ def apply(self, t: int, raw, out, dt_ms, supply, acc):
             t = w[_THI]
             w[_CL] = w[_CL] + 1
         if t != w[_TC]:
-            self._nstep(t)
+            if w[_SMALL]:
+                step(int(w), t)
+            else:
+                step(self._wp, t)
         mid = w[_MID]
         lim = w[_LIM]
         kb = w[_KB]
@@ -206,20 +225,16 @@ def apply(self, t: int, raw, out, dt_ms, supply, acc):
         return
     nb = 1
     st = 0
-    ro = 0
-    ao = -1
     to = -1
     if fl & _FBURST:
         fl &= ~_FBURST
         w[_FL] = fl
         nb = w[_NB]
         st = w[_STR]
-        ro = w[_ROFF]
-        ao = w[_AOFF]
         to = w[_TOFF]
     ra = fl & _FACC
-    if ao >= 0:
-        ra = 0
+    if st and w[_AOFF] >= 0:
+        ra = 0  # the accelerometer's words come with each sample
     bp = ptr8(0)
     ap = ptr32(0)
     try:
@@ -231,7 +246,7 @@ def apply(self, t: int, raw, out, dt_ms, supply, acc):
         if ra:
             ap = ptr32(acc)
     except TypeError:
-        self._bind(raw, out, acc, st)
+        self._bind(raw, out, acc, nb if st else 0)
         return
     if st:
         ok = int(op) == w[_CBOUT]
@@ -242,58 +257,49 @@ def apply(self, t: int, raw, out, dt_ms, supply, acc):
         if ok and ra:
             ok = int(ap) == w[_CACC]
     if not ok:
-        self._bind(raw, out, acc, st)
-    body = self._body  # the sample's body: augment_thumb.body, or vbody below
-    wp = self._wp
-    dt = 0
-    if fl & _FDT:
-        dt = int(dt_ms)
+        self._bind(raw, out, acc, nb if st else 0)
+    if ra:
+        w[_AS] = ap[0]
+        w[_AS + 1] = ap[1]
+        w[_AS + 2] = ap[2]
     if fl & _FSUP:
         w[_SUPS] = int(supply)
+    d = 0
+    if fl & _FDT:
+        d = int(dt_ms)
+        if d < 0:
+            d = int(self._ticks())
+        if d > _DT_MAX:
+            d = _DT_MAX
+    w[_DTR] = -1
+    if fl & _FUP:
+        w[_DTR] = d
+    # one reading for the run: the whole burst, or one sample of it when each has its own
+    run = nb
+    if to >= 0:
+        run = 1
+    w[_MODE] = 0
+    w[_SRC] = int(rp)
+    if st:
+        w[_MODE] = 1
+        w[_SRC] = int(bp)
+    w[_OUTP] = int(op)
     i = 0
-    j = 0
     while i < nb:
-        if st:
-            p = j + ro
-            r0 = ((bp[p] << 8 | bp[p + 1]) ^ 0x8000) - 0x8000
-            r1 = ((bp[p + 2] << 8 | bp[p + 3]) ^ 0x8000) - 0x8000
-            r2 = ((bp[p + 4] << 8 | bp[p + 5]) ^ 0x8000) - 0x8000
-            if to >= 0:
-                p = j + to
-                t = ((bp[p] << 8 | bp[p + 1]) ^ 0x8000) - 0x8000
-        else:
-            r0 = rp[0]
-            r1 = rp[1]
-            r2 = rp[2]
-        if fl & _FACC:
-            if ao >= 0:
-                p = j + ao
-                w[_AS] = ((bp[p] << 8 | bp[p + 1]) ^ 0x8000) - 0x8000
-                w[_AS + 1] = ((bp[p + 2] << 8 | bp[p + 3]) ^ 0x8000) - 0x8000
-                w[_AS + 2] = ((bp[p + 4] << 8 | bp[p + 5]) ^ 0x8000) - 0x8000
-            else:
-                w[_AS] = ap[0]
-                w[_AS + 1] = ap[1]
-                w[_AS + 2] = ap[2]
-        d = 0
-        if fl & _FDT:
-            d = dt
-            if d < 0:
-                d = int(self._ticks())
-            if d > _DT_MAX:
-                d = _DT_MAX
-            if fl & _FUP:
-                u = w[_UPT] + d
-                if u < _UP_MAX:
-                    w[_UPT] = u
+        if to >= 0:
+            p = w[_SRC] + to
+            t = ((ptr8(p)[0] << 8 | ptr8(p)[1]) ^ 0x8000) - 0x8000
         if t < w[_TLO]:
             t = w[_TLO]
-            w[_CL] = w[_CL] + 1
+            w[_CL] = w[_CL] + run
         elif t > w[_THI]:
             t = w[_THI]
-            w[_CL] = w[_CL] + 1
+            w[_CL] = w[_CL] + run
         if t != w[_TC]:
-            self._nstep(t)
+            if w[_SMALL]:
+                step(int(w), t)
+            else:
+                step(self._wp, t)
         x = t << 12
         w[_XS] = x
         w[_FILT] = 0
@@ -315,261 +321,315 @@ def apply(self, t: int, raw, out, dt_ms, supply, acc):
                     if li < 0:
                         q[2] = x
                     else:
-                        q[2] = w[li]
+                        q[2] = w[li >> 2]
                     q = ptr32(int(q) + 12)
                     n -= 1
             else:
-                if d != w[_DTC]:
-                    # alpha(dt) = 1 - prod_k (1 - alpha(2**k)) over dt's set bits (augment._alphas)
-                    w[_DTC] = d
-                    q = ptr32(int(w) + (w[_PTAU] << 2))
-                    n = w[_NTAU]
-                    while n:
-                        a = 0
-                        k = 4
-                        e = d
-                        while e:
-                            if e & 1:
-                                b = q[k]
-                                ah = a >> 14
-                                al = a & 0x3FFF
-                                bh = b >> 14
-                                bl = b & 0x3FFF
-                                a = a + b - (ah * bh + ((ah * bl + al * bh + ((al * bl) >> 14)) >> 14))
-                            e >>= 1
-                            k += 1
-                        q[1] = a
-                        q = ptr32(int(q) + _TREC * 4)
-                        n -= 1
                 w[_FILT] = 1
+            if d != w[_DTC] and (w[_FILT] or run > 1):
+                # alpha(dt) = 1 - prod_k (1 - alpha(2**k)) over dt's set bits (augment._alphas)
+                w[_DTC] = d
+                q = ptr32(int(w) + (w[_PTAU] << 2))
+                n = w[_NTAU]
+                while n:
+                    a = 0
+                    k = 4
+                    e = d
+                    while e:
+                        if e & 1:
+                            b = q[k]
+                            ah = a >> 14
+                            al = a & 0x3FFF
+                            bh = b >> 14
+                            bl = b & 0x3FFF
+                            a = a + b - (ah * bh + ((ah * bl + al * bh + ((al * bl) >> 14)) >> 14))
+                        e >>= 1
+                        k += 1
+                    q[1] = a
+                    q = ptr32(int(q) + _TREC * 4)
+                    n -= 1
+        w[_NS] = run
+        if w[_SMALL]:
+            _run(int(w))
+        else:
+            _run(self._wp)
+        i += run
+
+
+@micropython.viper
+def apply_be16_n(self, t: int, buf, out, n: int, dt_ms, supply, acc):
+    """Augmented.apply_be16_n: the burst's arguments checked (its buffers by address and length
+    against the last ones checked), then apply()'s burst."""
+    w = ptr32(self._wp)
+    d = int(dt_ms)
+    if n < 0 or n > 32767 or d < 0 or d > _DT_MAX:
+        self._check_burst(buf, out, n, dt_ms)  # raises
+    if n == 0:
+        self._check_burst(buf, out, n, dt_ms)
+        return
+    bp = ptr8(0)
+    op = ptr32(0)
+    try:
+        bp = ptr8(buf)
+        op = ptr32(out)
+    except TypeError:
+        self._bind(buf, out, acc, n)
+        return
+    if int(bp) != w[_CBUF] or int(op) != w[_CBOUT] or (n - 1) * w[_STR] + w[_NEED] > w[_CBUFN] or 3 * n > w[_CBOUTN]:
+        self._bind(buf, out, acc, n)
+    w[_NB] = n
+    w[_FL] = w[_FL] | _FBURST
+    self.apply(t, buf, out, dt_ms, supply, acc)
+
+
+@micropython.viper
+def vrun(wp):
+    """augment_thumb.run where the port has no inline assembler: a run of samples (the run
+    block's), each as augment._general does it."""
+    w = ptr32(wp)
+    while w[_NS]:
+        w[_NS] = w[_NS] - 1
+        sp = w[_SRC]
+        if w[_MODE]:
+            sp += w[_ROFF]
+            bq = ptr8(sp)
+            r0 = ((bq[0] << 8 | bq[1]) ^ 0x8000) - 0x8000
+            r1 = ((bq[2] << 8 | bq[3]) ^ 0x8000) - 0x8000
+            r2 = ((bq[4] << 8 | bq[5]) ^ 0x8000) - 0x8000
+            if w[_AOFF] >= 0:
+                bq = ptr8(w[_SRC] + w[_AOFF])
+                w[_AS] = ((bq[0] << 8 | bq[1]) ^ 0x8000) - 0x8000
+                w[_AS + 1] = ((bq[2] << 8 | bq[3]) ^ 0x8000) - 0x8000
+                w[_AS + 2] = ((bq[4] << 8 | bq[5]) ^ 0x8000) - 0x8000
+        else:
+            q = ptr32(sp)
+            r0 = q[0]
+            r1 = q[1]
+            r2 = q[2]
+        if w[_DTR] >= 0:
+            u = w[_UPT] + w[_DTR]
+            if u < w[_UPMAX]:
+                w[_UPT] = u
         n = w[_NHYP]
         q = ptr32(int(w) + (w[_PHYP] << 2))
         while n:
             a = q[1]
-            w[q[0]] = (a << 14) // (a + (w[_UPT] >> q[2]))
+            w[q[0] >> 2] = (a << 14) // (a + (w[_UPT] >> q[2]))
             q = ptr32(int(q) + 12)
             n -= 1
-        body(wp, r0, r1, r2)
-        q = ptr32(int(op) + 12 * i)
-        q[0] = w[_O]
-        q[1] = w[_O + 1]
-        q[2] = w[_O + 2]
-        i += 1
-        j += st
-
-
-@micropython.viper
-def vbody(wp, r0: int, r1: int, r2: int):
-    """augment._general: the filters' step, the features, per axis y0 and 1 / (1 + rho e), the
-    cross-axis solve; outputs in _O (where the port has no asm_thumb, augment_thumb.body)."""
-    w = ptr32(wp)
-    cl = w[_CL] + w[_SCL]
-    x = w[_XS]
-    if w[_FILT]:
-        q = ptr32(int(w) + (w[_PTAU] << 2))
-        n = w[_NTAU]
+        cl = w[_CL] + w[_SCL]
+        x = w[_XS]
+        if w[_FILT]:
+            q = ptr32(int(w) + (w[_PTAU] << 2))
+            n = w[_NTAU]
+            while n:
+                # v += alpha * (target - v), exact to 2**-16 of a unit (carry in q[3])
+                a = q[1]
+                v = q[2]
+                if q[0]:
+                    e = 0 - v
+                else:
+                    e = x - v
+                ah = a >> 14
+                al = a & 0x3FFF
+                dh = e >> 14
+                dl = e & 0x3FFF
+                m = ah * dl + al * dh
+                lo = ((m & 0x3FFF) << 14) + al * dl
+                s = q[3] + ((lo & 0xFFFFFFF) >> 12)
+                q[2] = v + ah * dh + (m >> 14) + (lo >> 28) + (s >> 16)
+                q[3] = s & 0xFFFF
+                q = ptr32(int(q) + _TREC * 4)
+                n -= 1
+            q = ptr32(int(w) + (w[_PPLAY] << 2))
+            n = w[_NPLAY]
+            while n:
+                h = q[0]
+                li = q[1]
+                xi = x
+                if li >= 0:
+                    xi = w[li >> 2]
+                if xi - h > q[2]:
+                    q[2] = xi - h
+                elif xi + h < q[2]:
+                    q[2] = xi + h
+                q = ptr32(int(q) + 12)
+                n -= 1
+        # the sample's features (augment._features)
+        n = w[_NSF]
+        q = ptr32(int(w) + ((w[_PSF] + 4) << 2))
         while n:
-            # v += alpha * (target - v), exact to 2**-16 of a unit (carry in q[3])
-            a = q[1]
-            v = q[2]
-            if q[0]:
-                e = 0 - v
+            k = q[0]
+            a = w[q[2] >> 2]
+            b = q[3]
+            if k == _OSUBC:
+                v = a - b
+            elif k == _OSUB:
+                v = a - w[b >> 2]
+            elif k == _OMUL:
+                v = a * w[b >> 2]
             else:
-                e = x - v
-            ah = a >> 14
-            al = a & 0x3FFF
-            dh = e >> 14
-            dl = e & 0x3FFF
-            m = ah * dl + al * dh
-            lo = ((m & 0x3FFF) << 14) + al * dl
-            s = q[3] + ((lo & 0xFFFFFFF) >> 12)
-            q[2] = v + ah * dh + (m >> 14) + (lo >> 28) + (s >> 16)
-            q[3] = s & 0xFFFF
-            q = ptr32(int(q) + _TREC * 4)
+                v = a >> b
+            b = q[4]
+            if v > b:
+                v = b
+                cl += 1
+            elif v < 0 - b:
+                v = 0 - b
+                cl += 1
+            k = q[5]
+            if k < 0:
+                v <<= 0 - k
+            elif k:
+                v = (v + (1 << (k - 1))) >> k
+                if v > _FMAX:
+                    v = _FMAX
+                elif v < 0 - _FMAX:
+                    v = 0 - _FMAX
+            w[q[1] >> 2] = v
+            q = ptr32(int(q) + _FREC * 4)
             n -= 1
-        q = ptr32(int(w) + (w[_PPLAY] << 2))
-        n = w[_NPLAY]
-        while n:
-            h = q[0]
-            li = q[1]
-            xi = x
-            if li >= 0:
-                xi = w[li]
-            if xi - h > q[2]:
-                q[2] = xi - h
-            elif xi + h < q[2]:
-                q[2] = xi + h
-            q = ptr32(int(q) + 12)
-            n -= 1
-    # the sample's features (augment._features)
-    n = w[_NSF]
-    q = ptr32(int(w) + (w[_PSF] << 2))
-    while n:
-        k = q[0]
-        a = w[q[2]]
-        b = q[3]
-        if k == _OSUBC:
-            v = a - b
-        elif k == _OSUB:
-            v = a - w[b]
-        elif k == _OMUL:
-            v = a * w[b]
-        else:
-            v = a >> b
-        b = q[4]
-        if v > b:
-            v = b
-            cl += 1
-        elif v < 0 - b:
-            v = 0 - b
-            cl += 1
-        k = q[5]
-        if k < 0:
-            v <<= 0 - k
-        elif k:
-            v = (v + (1 << (k - 1))) >> k
-            if v > _FMAX:
-                v = _FMAX
-            elif v < 0 - _FMAX:
-                v = 0 - _FMAX
-        w[q[1]] = v
-        q = ptr32(int(q) + _FREC * 4)
-        n -= 1
-    mid = w[_MID]
-    lim = w[_LIM]
-    ax = 0
-    while ax < 3:
-        xb = ptr32(int(w) + ((_AXB + _AXS * ax) << 2))
-        if ax == 0:
-            r = r0
-        elif ax == 1:
-            r = r1
-        else:
-            r = r2
-        xb[_RAW] = r
-        e = xb[_DS]
-        q = ptr32(int(w) + (xb[_OT] << 2))
-        n = q[0]
-        while n:
-            c = q[2]
-            f = w[q[1]]
-            e += ((c >> 14) * f + (((c & 0x3FFF) * f) >> 14)) >> 1
-            q = ptr32(int(q) + 8)
-            n -= 1
-        k = xb[_FO]
-        f = (e >> (k - 8)) & 0xFF
-        r = r - mid - (e >> k)
-        if r > lim:
-            r = lim
-            cl += 1
-        elif r < 0 - lim:
-            r = 0 - lim
-            cl += 1
-        g = xb[_GH]
-        xb[_Y0] = (r * g + ((r * xb[_GL]) >> w[_KB]) - xb[_B] - ((f * g) >> 8) + w[_RND]) >> w[_S2]
-        if xb[_HG]:
-            e = xb[_ES]
-            q = ptr32(int(w) + (xb[_GT] << 2))
-            n = q[0]
-            while n:
-                c = q[2]
-                f = w[q[1]]
-                e += ((c >> 14) * f + (((c & 0x3FFF) * f) >> 14)) >> 1
-                q = ptr32(int(q) + 8)
-                n -= 1
-            a = xb[_RHO]
-            ah = a >> 14
-            al = a & 0x3FFF
-            bh = e >> 14
-            bl = e & 0x3FFF
-            e = ah * bh + ((ah * bl + al * bh + ((al * bl) >> 14)) >> 14)
-            # 1 / (1 + e) = 1 - e (1 - e (1 - e (1 - e))), |e| <= 1/8
-            a = _ONE - e
-            ah = e >> 14
-            al = e & 0x3FFF
-            n = 3
-            while n:
-                bh = a >> 14
-                bl = a & 0x3FFF
-                a = _ONE - (ah * bh + ((ah * bl + al * bh + ((al * bl) >> 14)) >> 14))
-                n -= 1
-            xb[_INV] = a
-            a = xb[_Y0]
-            b = xb[_INV]
-            ah = a >> 14
-            al = a & 0x3FFF
-            bh = b >> 14
-            bl = b & 0x3FFF
-            xb[_Y] = ah * bh + ((ah * bl + al * bh + ((al * bl) >> 14)) >> 14)
-        else:
-            xb[_Y] = xb[_Y0]
-        ax += 1
-    w[_CL] = cl
-    if w[_FL] & _FCROSS:
-        # y = (y0 - K y) / (1 + e), two steps from y0 / (1 + e) (augment._general)
-        it = 2
-        while it:
-            ax = 0
-            while ax < 3:
-                xb = ptr32(int(w) + ((_AXB + _AXS * ax) << 2))
-                s = xb[_Y0]
-                q = ptr32(int(w) + (xb[_CR] << 2))
+        mid = w[_MID]
+        lim = w[_LIM]
+        ax = 0
+        while ax < 3:
+            xb = ptr32(int(w) + ((_AXB + _AXS * ax) << 2))
+            if ax == 0:
+                r = r0
+            elif ax == 1:
+                r = r1
+            else:
+                r = r2
+            xb[_RAW] = r
+            e = 0
+            if xb[_AF] & _AOFFS:
+                e = xb[_DS]
+                q = ptr32(int(w) + (xb[_OT] << 2))
                 n = q[0]
                 while n:
-                    k = q[1]
-                    a = xb[_KM + k]
-                    b = w[_AXB + _AXS * k + _Y]
-                    ah = a >> 14
-                    al = a & 0x3FFF
-                    bh = b >> 14
-                    bl = b & 0x3FFF
-                    s -= ah * bh + ((ah * bl + al * bh + ((al * bl) >> 14)) >> 14)
+                    f = w[q[1] >> 2]
+                    e += (q[2] * f + ((q[3] * f) >> 14)) >> 1
                     q = ptr32(int(q) + 12)
                     n -= 1
-                if xb[_HG]:
-                    b = xb[_INV]
-                    ah = s >> 14
-                    al = s & 0x3FFF
-                    bh = b >> 14
-                    bl = b & 0x3FFF
-                    s = ah * bh + ((ah * bl + al * bh + ((al * bl) >> 14)) >> 14)
-                w[_O + ax] = s
-                ax += 1
-            w[_AXB + _Y] = w[_O]
-            w[_AXB + _AXS + _Y] = w[_O + 1]
-            w[_AXB + 2 * _AXS + _Y] = w[_O + 2]
-            it -= 1
-    w[_O] = (w[_AXB + _Y] + 2) >> 2
-    w[_O + 1] = (w[_AXB + _AXS + _Y] + 2) >> 2
-    w[_O + 2] = (w[_AXB + 2 * _AXS + _Y] + 2) >> 2
+            k = xb[_FO]
+            f = (e >> (k - 8)) & 0xFF
+            r = r - mid - (e >> k)
+            if r > lim:
+                r = lim
+                cl += 1
+            elif r < 0 - lim:
+                r = 0 - lim
+                cl += 1
+            g = xb[_GH]
+            xb[_Y0] = (r * g + ((r * xb[_GL]) >> w[_KB]) - xb[_B] - ((f * g) >> 8) + w[_RND]) >> w[_S2]
+            if xb[_AF] & _AGAIN:
+                e = xb[_ES]
+                q = ptr32(int(w) + (xb[_GT] << 2))
+                n = q[0]
+                while n:
+                    f = w[q[1] >> 2]
+                    e += (q[2] * f + ((q[3] * f) >> 14)) >> 1
+                    q = ptr32(int(q) + 12)
+                    n -= 1
+                a = xb[_RHO]
+                ah = a >> 14
+                al = a & 0x3FFF
+                bh = e >> 14
+                bl = e & 0x3FFF
+                e = ah * bh + ((ah * bl + al * bh + ((al * bl) >> 14)) >> 14)
+                # 1 / (1 + e) = 1 - e (1 - e (1 - e (1 - e))), |e| <= 1/8
+                a = _ONE - e
+                ah = e >> 14
+                al = e & 0x3FFF
+                n = 3
+                while n:
+                    bh = a >> 14
+                    bl = a & 0x3FFF
+                    a = _ONE - (ah * bh + ((ah * bl + al * bh + ((al * bl) >> 14)) >> 14))
+                    n -= 1
+                xb[_INV] = a
+                a = xb[_Y0]
+                b = xb[_INV]
+                ah = a >> 14
+                al = a & 0x3FFF
+                bh = b >> 14
+                bl = b & 0x3FFF
+                xb[_Y] = ah * bh + ((ah * bl + al * bh + ((al * bl) >> 14)) >> 14)
+            else:
+                xb[_Y] = xb[_Y0]
+            ax += 1
+        w[_CL] = cl
+        if w[_FL] & _FCROSS:
+            # y = (y0 - K y) / (1 + e), two steps from y0 / (1 + e) (augment._general)
+            it = 2
+            while it:
+                ax = 0
+                while ax < 3:
+                    xb = ptr32(int(w) + ((_AXB + _AXS * ax) << 2))
+                    s = xb[_Y0]
+                    q = ptr32(int(w) + (xb[_CR] << 2))
+                    n = q[0]
+                    while n:
+                        k = q[1]
+                        a = xb[_KM + k]
+                        b = w[_AXB + _AXS * k + _Y]
+                        ah = a >> 14
+                        al = a & 0x3FFF
+                        bh = b >> 14
+                        bl = b & 0x3FFF
+                        s -= ah * bh + ((ah * bl + al * bh + ((al * bl) >> 14)) >> 14)
+                        q = ptr32(int(q) + 12)
+                        n -= 1
+                    if xb[_AF] & _AGAIN:
+                        b = xb[_INV]
+                        ah = s >> 14
+                        al = s & 0x3FFF
+                        bh = b >> 14
+                        bl = b & 0x3FFF
+                        s = ah * bh + ((ah * bl + al * bh + ((al * bl) >> 14)) >> 14)
+                    w[_O + ax] = s
+                    ax += 1
+                w[_AXB + _Y] = w[_O]
+                w[_AXB + _AXS + _Y] = w[_O + 1]
+                w[_AXB + 2 * _AXS + _Y] = w[_O + 2]
+                it -= 1
+        q = ptr32(w[_OUTP])
+        q[0] = (w[_AXB + _Y] + 2) >> 2
+        q[1] = (w[_AXB + _AXS + _Y] + 2) >> 2
+        q[2] = (w[_AXB + 2 * _AXS + _Y] + 2) >> 2
+        w[_OUTP] = w[_OUTP] + 12
+        w[_SRC] = w[_SRC] + w[_STR]
+        w[_FILT] = w[_HASF]
 
 
 @micropython.viper
-def step(self, t: int):
-    """Augmented._step (as the method _nstep): what depends on the reading t alone (clamped
-    already), with Compensator.update's arithmetic for the base."""
-    w = ptr32(self._wp)
+def step(wp, t: int):
+    """augment.Augmented._step: what depends on the reading t alone (clamped already), with
+    fixedpoint.Compensator.update's arithmetic for the base (the _UREC records of augment._urec)."""
+    w = ptr32(wp)
     kb = w[_KB]
     fl = w[_FL]
-    ax = 0
-    while ax < 3:
-        xb = ptr32(int(w) + ((_AXB + _AXS * ax) << 2))
-        u = w[_PUPD] + _UREC * ax
-        fd = w[u]
+    xb = ptr32(int(w) + (_AXB << 2))
+    ur = ptr32(int(w) + (w[_PUPD] << 2))
+    ax = 3
+    while ax:
+        fd = ur[0]
         if fd >= 0:
-            # Compensator.update's constant-scale axis: its offset term by Horner's rule
-            b = w[u + 2]
+            # a constant-scale axis: its offset term by Horner's rule (the inline mul_shift)
+            b = ur[2]
             if fd:
-                x = (t - w[u + 18]) << w[u + 19]
-                hs = w[u + 20]
-                a = w[u + 2 + fd]
+                x = (t - ur[18]) << ur[19]
+                hs = ur[20]
+                hp = ptr32(int(ur) + ((2 + fd) << 2))
+                a = hp[0]
                 while True:
                     a = ((a >> 14) * x + (((a & 0x3FFF) * x) >> 14)) >> hs
                     fd -= 1
                     if not fd:
                         break
-                    a += w[u + 2 + fd]
-                sh = w[u + 1]
+                    hp = ptr32(int(hp) - 4)
+                    a += hp[0]
+                sh = ur[1]
                 if sh >= 0:
                     b += a >> sh
                 else:
@@ -577,45 +637,49 @@ def step(self, t: int):
             xb[_B] = b
         else:
             # the scale d + e / 2**14 (Poly.eval_ext) and the offset o (Poly.eval)
-            k = w[u + 6]
+            k = ur[6]
             if k == 0:
-                d = w[u + 12]
-                e = w[u + 13]
+                d = ur[12]
+                e = ur[13]
             else:
-                x = (t - w[u + 7]) << w[u + 8]
-                hs = w[u + 9]
-                v = w[u + 13 + k]
+                x = (t - ur[7]) << ur[8]
+                hs = ur[9]
+                hp = ptr32(int(ur) + ((13 + k) << 2))
+                v = hp[0]
                 while True:
                     v = ((v >> 14) * x + (((v & 0x3FFF) * x) >> 14)) >> hs
                     k -= 1
                     if not k:
                         break
-                    v += w[u + 13 + k]
-                vs = w[u + 10]
-                lo = v & w[u + 11]
+                    hp = ptr32(int(hp) - 4)
+                    v += hp[0]
+                vs = ur[10]
+                lo = v & ur[11]
                 if vs >= 14:
                     lo >>= vs - 14
                 else:
                     lo <<= 14 - vs
-                lo += w[u + 13]
+                lo += ur[13]
                 e = lo & 0x3FFF
-                d = w[u + 12] + (v >> vs) + (lo >> 14)
-            k = w[u + 17]
+                d = ur[12] + (v >> vs) + (lo >> 14)
+            k = ur[17]
             if k == 0:
-                o = w[u + 23]
+                o = ur[23]
             else:
-                x = (t - w[u + 18]) << w[u + 19]
-                hs = w[u + 20]
-                v = w[u + 23 + k]
+                x = (t - ur[18]) << ur[19]
+                hs = ur[20]
+                hp = ptr32(int(ur) + ((23 + k) << 2))
+                v = hp[0]
                 while True:
                     v = ((v >> 14) * x + (((v & 0x3FFF) * x) >> 14)) >> hs
                     k -= 1
                     if not k:
                         break
-                    v += w[u + 23 + k]
-                o = w[u + 23] + ((v + w[u + 22]) >> w[u + 21])
-            wg = w[u + 27]
-            wx = w[u + 28] - 7
+                    hp = ptr32(int(hp) - 4)
+                    v += hp[0]
+                o = ur[23] + ((v + ur[22]) >> ur[21])
+            wg = ur[27]
+            wx = ur[28] - 7
             g = 0
             b = 0
             if wg >= 0 and wx >= 0:
@@ -623,14 +687,12 @@ def step(self, t: int):
                 # the rest f / 2**21 of a unit of dh (fixedpoint's _div_wide and _corr21)
                 dh = d >> 7
                 f = ((d & 0x7F) << 14) + e
-                k = 0
-                while k < 2:
-                    if k == 0:
-                        num = 1 << 28
-                        ex = wg
-                    else:
-                        num = o
-                        ex = wx
+                fh = f >> 14
+                fl14 = f & 0x3FFF
+                num = 1 << 28
+                ex = wg
+                k = 2
+                while k:
                     q = num // dh
                     r = num - q * dh
                     while ex >= 10:
@@ -641,36 +703,30 @@ def step(self, t: int):
                         ex -= 10
                     if ex:
                         r <<= ex
-                        c = r // dh
-                        q = (q << ex) + c
+                        q = (q << ex) + r // dh
                     if f:
-                        x = f >> 14
-                        y = f & 0x3FFF
                         qh = q >> 14
                         ql = q & 0x3FFF
-                        c = ((qh * x) << 7) + ((ql * x) >> 7)
-                        c += (qh * y + ((ql * y) >> 14)) >> 7
+                        c = ((qh * fh) << 7) + ((ql * fh) >> 7) + ((qh * fl14 + ((ql * fl14) >> 14)) >> 7)
                         q -= c // dh
-                    if k == 0:
+                    if k == 2:
                         g = q
+                        num = o
+                        ex = wx
                     else:
                         b = q
-                    k += 1
+                    k -= 1
             else:
                 # the plain long division, three bits a step (fixedpoint's div_pow2)
-                k = 0
-                while k < 2:
-                    if k == 0:
-                        ex = w[u + 29]
-                        num = 1 << 28
-                        if ex <= 28:
-                            num = 1 << ex
-                            ex = 0
-                        else:
-                            ex -= 28
-                    else:
-                        num = o
-                        ex = w[u + 28]
+                ex = ur[29]
+                num = 1 << 28
+                if ex <= 28:
+                    num = 1 << ex
+                    ex = 0
+                else:
+                    ex -= 28
+                k = 2
+                while k:
                     q = num // d
                     r = num - q * d
                     while ex > 0:
@@ -684,11 +740,13 @@ def step(self, t: int):
                         ex -= s
                     if e:
                         q -= ((q >> 14) * e + (((q & 0x3FFF) * e) >> 14)) // d
-                    if k == 0:
+                    if k == 2:
                         g = q
+                        num = o
+                        ex = ur[28]
                     else:
                         b = q
-                    k += 1
+                    k -= 1
             g = (g + 1) >> 1
             xb[_GH] = g >> kb
             xb[_GL] = g & ((1 << kb) - 1)
@@ -702,22 +760,24 @@ def step(self, t: int):
             bh = b >> 14
             bl = b & 0x3FFF
             xb[_RHO] = 4 * ah * bh + ((ah * bl + al * bh + ((al * bl) >> 14)) >> 12)
-        ax += 1
+        xb = ptr32(int(xb) + _AXS * 4)
+        ur = ptr32(int(ur) + _UREC * 4)
+        ax -= 1
     w[_TC] = t
     if not (fl & _FGEN):
         return
     w[_TS] = t
     n = w[_NTF]
-    rq = ptr32(int(w) + (w[_PTF] << 2))
+    rq = ptr32(int(w) + ((w[_PTF] + 4) << 2))
     cl = 0
     while n:
         # dT (w[_TS] - t0) and products of step features
         a = rq[2]
         b = rq[3]
         if rq[0] == _OSUBC:
-            v = w[a] - b
+            v = w[a >> 2] - b
         else:
-            v = w[a] * w[b]
+            v = w[a >> 2] * w[b >> 2]
         b = rq[4]
         if v > b:
             v = b
@@ -734,55 +794,67 @@ def step(self, t: int):
                 v = _FMAX
             elif v < 0 - _FMAX:
                 v = 0 - _FMAX
-        w[rq[1]] = v
+        w[rq[1] >> 2] = v
         rq = ptr32(int(rq) + _FREC * 4)
         n -= 1
     w[_SCL] = cl
     dtf = 0
     if w[_DTI] >= 0:
         dtf = w[w[_DTI]]
-    ax = 0
-    while ax < 3:
-        xb = ptr32(int(w) + ((_AXB + _AXS * ax) << 2))
-        k = 0
-        while k < 2:
-            if k == 0:
-                p = xb[_SOT]
+    xb = ptr32(int(w) + (_AXB << 2))
+    ax = 3
+    while ax:
+        k = 2
+        while k:
+            if k == 2:
+                rq = ptr32(int(w) + (xb[_SOT] << 2))
             else:
-                p = xb[_SGT]
-            n = w[p]
+                rq = ptr32(int(w) + (xb[_SGT] << 2))
+            n = rq[0]
             e = 0
             while n:
-                c = w[p + 2]
-                f = w[w[p + 1]]
-                e += ((c >> 14) * f + (((c & 0x3FFF) * f) >> 14)) >> 1
-                p += 2
+                f = w[rq[1] >> 2]
+                e += (rq[2] * f + ((rq[3] * f) >> 14)) >> 1
+                rq = ptr32(int(rq) + 12)
                 n -= 1
-            if k == 0:
+            if k == 2:
                 xb[_DS] = e
             else:
                 xb[_ES] = e
-            k += 1
-        p = xb[_CR]
-        n = w[p]
+            k -= 1
+        rq = ptr32(int(w) + (xb[_CR] << 2))
+        n = rq[0]
         a = xb[_RHO]
         ah = a >> 14
         al = a & 0x3FFF
         while n:
-            c = w[p + 3]
-            b = w[p + 2] + (((c >> 14) * dtf + (((c & 0x3FFF) * dtf) >> 14)) >> 1)
+            c = rq[3]
+            b = rq[2] + (((c >> 14) * dtf + (((c & 0x3FFF) * dtf) >> 14)) >> 1)
             bh = b >> 14
             bl = b & 0x3FFF
-            xb[_KM + w[p + 1]] = ah * bh + ((ah * bl + al * bh + ((al * bl) >> 14)) >> 14)
-            p += 3
+            xb[_KM + rq[1]] = ah * bh + ((ah * bl + al * bh + ((al * bl) >> 14)) >> 14)
+            rq = ptr32(int(rq) + 12)
             n -= 1
-        ax += 1
+        xb = ptr32(int(xb) + _AXS * 4)
+        ax -= 1
 
 
-body = vbody  # the general sample's body: asm_thumb where the port has the inline assembler
+_run = vrun  # a run of samples: asm_thumb where the port has the inline assembler
 try:
     from tempcomp import augment_thumb
 
-    body = augment_thumb.body
+    _run = augment_thumb.run
 except (ImportError, SyntaxError, ValueError, NotImplementedError, AttributeError):
     pass
+
+
+def use_asm(on):
+    """Run the general samples with the asm_thumb kernel (True, where there is one) or the viper
+    one (False): the same numbers (tests compare them)."""
+    global _run
+    if on:
+        from tempcomp import augment_thumb
+
+        _run = augment_thumb.run
+    else:
+        _run = vrun
