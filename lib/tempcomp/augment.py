@@ -330,7 +330,11 @@ _RR = const(21)
 _CBUF = const(128)  # a burst's checked buffer, its length, the checked out array's length
 _CBUFN = const(129)
 _CBOUTN = const(130)
-_HDR = const(131)
+_TSPAN = const(131)  # native: t_hi - t_lo, 2 * 2**K, the base's rounding and shift to the output
+_LIM2 = const(132)
+_RNDO = const(133)
+_S2O = const(134)
+_HDR = const(135)
 _TREC = const(30)  # lowpass record: drift flag, alpha, state, carry, then the alpha table
 _FREC = const(6)  # feature record: operation, value index, s1, s2, bound, shift
 _OSUB = const(0)  # the record's operations: w[s1] - w[s2]
@@ -408,7 +412,6 @@ class Augmented:
         c_hi = int((float(tc[1]) - t_off) / t_lsb) + 2
         # dT counts from the reading nearest t0 (docs: a shift below half a reading step)
         t0r = int(round((t0 - t_off) / t_lsb))
-        self.t0 = t0r * t_lsb + t_off
         t_ref = (c_lo + c_hi) // 2
         offs = []
         scs = []
@@ -424,7 +427,6 @@ class Augmented:
         self.comp = Compensator(offs, scs, (c_lo, c_hi), out_scale=float(m.get("out_scale", 1.0)),
                                 raw_range=(int(rr[0]), int(rr[1])), policy=EXTRAPOLATE, t_ref=t_ref)
         c = self.comp
-        self.out_scale = c.out_scale
         t_lo, t_hi = c.t_in
         feats = [] if base_only else m.get("features", [])
         nf = len(feats)
@@ -555,6 +557,10 @@ class Augmented:
         w[_KB] = c._k
         w[_S2] = c._s - 2
         w[_RND] = 1 << (c._s - 3)
+        w[_TSPAN] = t_hi - t_lo
+        w[_LIM2] = 2 << c._k
+        w[_RNDO] = (1 << (c._s - 3)) + (1 << (c._s - 1))  # ((y + rnd) >> (S - 2) + 2) >> 2
+        w[_S2O] = c._s
         w[_KONE] = _ONE
         w[_KFMAX] = _FMAX
         w[_DTI] = -1
@@ -588,7 +594,6 @@ class Augmented:
         # lowpass records with their alpha tables: 1 - exp(-2**k ms / tau) in Q28
         w[_NTAU] = len(taus)
         w[_PTAU] = len(w)
-        self._tau_ms = [t[0] * 1000.0 for t in taus]
         for tau, drift in taus:
             w.extend([1 if drift else 0, 0, 0, 0])
             w.extend([min(_ONE, _fix(1.0 - _exp(-float(1 << kk) / (tau * 1000.0)), _Q)) for kk in range(_TAB)])
@@ -667,7 +672,10 @@ class Augmented:
         if nf or fl & _FRHO:
             fl |= _FGEN
         w[_FL] = fl
-        self._keep = [None] * (_CBUF - _CRAW + 1)  # native: the arrays whose addresses are in _C*
+        # the lowpass time constants (ms, for start()), then (native) the arrays whose buffer
+        # addresses are in _C*. Five instance attributes: comp, unit, _aux, _w, _wp (more, and
+        # MicroPython's member table fills up, and every apply() lookup, a miss there, probes all of it)
+        self._aux = [[t[0] * 1000.0 for t in taus]] + [None] * (_CBUF - _CRAW + 1)
         self._w = w
         self._wp = w
         if _kernel() is not None:
@@ -684,10 +692,10 @@ class Augmented:
                 self.apply_be16_n = self._apply_be16_n
         self.start(0)
 
-    @property
     def clamped(self):
         """Values clamped so far: features at their bounds, raw codes and readings outside the
-        proven ranges (never wrapped)."""
+        proven ranges (never wrapped). A method, not a property: a property makes MicroPython
+        check every attribute the class serves for accessors, apply() included."""
         return self._w[_CL]
 
     def _set_terms(self, m, nf, dti, step, fmax, terms, cross):
@@ -754,7 +762,7 @@ class Augmented:
         for i in range(w[_NTAU]):
             w[p + 3] = 0
             if w[p]:
-                w[p + 2] = _fix(_exp(-float(up) / self._tau_ms[i]), _Q)
+                w[p + 2] = _fix(_exp(-float(up) / self._aux[0][i]), _Q)
             p += _TREC
 
     def layout(self, stride=6, raw=0, acc=-1, temp=-1):
@@ -817,7 +825,7 @@ class Augmented:
             self._check_burst(raw, out, burst, 0)
             k.note(w, _CBUF, raw)
             w[_CBUFN] = len(raw)
-            self._keep[_CBUF - _CRAW] = raw
+            self._aux[1 + _CBUF - _CRAW] = raw
         for name, a, slot in (("out", out, _CBOUT if burst else _COUT), ("raw", raw, _CRAW),
                               ("acc", acc, _CBACC if burst else _CACC)):
             if name == "raw" and burst or name == "acc" and (not w[_FL] & _FACC or burst and w[_AOFF] >= 0):
@@ -829,7 +837,7 @@ class Augmented:
             if slot == _CBOUT:
                 w[_CBOUTN] = len(a)
             # the reference keeps the checked buffer alive, so no other object's takes its address
-            self._keep[slot - _CRAW] = a
+            self._aux[1 + slot - _CRAW] = a
 
     def _ticks(self):
         # dt_ms = -1: the ms since the previous such sample by the port's clock (0 at the first)

@@ -83,6 +83,10 @@ _AXB = const(62)
 _CBUF = const(128)
 _CBUFN = const(129)
 _CBOUTN = const(130)
+_TSPAN = const(131)
+_LIM2 = const(132)
+_RNDO = const(133)
+_S2O = const(134)
 _AXS = const(22)
 _GH = const(0)
 _GL = const(1)
@@ -178,15 +182,16 @@ def apply(self, t: int, raw, out, dt_ms, supply, acc):
         except TypeError:
             self._bind(raw, out, acc, 0)
             return
-        if int(rp) != w[_CRAW] or int(op) != w[_COUT]:
+        if (int(rp) ^ w[_CRAW]) | (int(op) ^ w[_COUT]):
             # arrays not seen before: checked once (a list or a 16-bit array is refused by name)
             self._bind(raw, out, acc, 0)
-        if t < w[_TLO]:
-            t = w[_TLO]
+        if uint(t - w[_TLO]) > uint(w[_TSPAN]):
+            # outside the proven range: clamped, counted
             w[_CL] = w[_CL] + 1
-        elif t > w[_THI]:
-            t = w[_THI]
-            w[_CL] = w[_CL] + 1
+            if t < w[_TLO]:
+                t = w[_TLO]
+            else:
+                t = w[_THI]
         if t != w[_TC]:
             if w[_SMALL]:
                 step(int(w), t)
@@ -195,32 +200,31 @@ def apply(self, t: int, raw, out, dt_ms, supply, acc):
         mid = w[_MID]
         lim = w[_LIM]
         kb = w[_KB]
-        s2 = w[_S2]
-        rnd = w[_RND] + (2 << s2)  # the output's rounding folded in: ((y + rnd) >> s2 + 2) >> 2
-        s2 += 2
+        rnd = w[_RNDO]  # the output's rounding folded in: ((y + rnd) >> (S - 2) + 2) >> 2
+        s2 = w[_S2O]
         r = rp[0] - mid
-        if r > lim:
-            r = lim
+        if uint(r + lim) > uint(w[_LIM2]):
             w[_CL] = w[_CL] + 1
-        elif r < 0 - lim:
-            r = 0 - lim
-            w[_CL] = w[_CL] + 1
+            if r > 0:
+                r = lim
+            else:
+                r = 0 - lim
         op[0] = (r * w[_AXB + _GH] + ((r * w[_AXB + _GL]) >> kb) - w[_AXB + _B] + rnd) >> s2
         r = rp[1] - mid
-        if r > lim:
-            r = lim
+        if uint(r + lim) > uint(w[_LIM2]):
             w[_CL] = w[_CL] + 1
-        elif r < 0 - lim:
-            r = 0 - lim
-            w[_CL] = w[_CL] + 1
+            if r > 0:
+                r = lim
+            else:
+                r = 0 - lim
         op[1] = (r * w[_AXB + _AXS + _GH] + ((r * w[_AXB + _AXS + _GL]) >> kb) - w[_AXB + _AXS + _B] + rnd) >> s2
         r = rp[2] - mid
-        if r > lim:
-            r = lim
+        if uint(r + lim) > uint(w[_LIM2]):
             w[_CL] = w[_CL] + 1
-        elif r < 0 - lim:
-            r = 0 - lim
-            w[_CL] = w[_CL] + 1
+            if r > 0:
+                r = lim
+            else:
+                r = 0 - lim
         op[2] = (r * w[_AXB + 2 * _AXS + _GH] + ((r * w[_AXB + 2 * _AXS + _GL]) >> kb) - w[_AXB + 2 * _AXS + _B] + rnd) >> s2
         return
     nb = 1
