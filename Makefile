@@ -76,14 +76,18 @@ dist: setup
 # The virtual board: the MicroPython VM serving its REPL on a pty (build/vboard/tty, for
 # `mpremote connect build/vboard/tty repl`) and on 127.0.0.1:$(BOARD_TCP) (exec, cp, mount), flash kept
 # in build/vboard/flash/. `make board` runs it in the foreground; board-start/board-stop in the background.
+# BOARD=pico: the virtual Raspberry Pi Pico instead (the real RP2040 firmware on an emulated RP2040,
+# tools/pico), on the same front end; its flash is the littlefs image build/pico/flash.img.
+BOARD_ARG = $(if $(filter pico,$(BOARD)),--board pico)
+
 board: setup
-	$(VBOARD) --port $(BOARD_TCP)
+	$(VBOARD) --port $(BOARD_TCP) $(BOARD_ARG)
 
 board-start: setup
-	$(VBOARD) --port $(BOARD_TCP) --detach
+	$(VBOARD) --port $(BOARD_TCP) --detach $(BOARD_ARG)
 
 board-stop:
-	node tools/vboard/server.mjs --stop
+	node tools/vboard/server.mjs --stop $(BOARD_ARG)
 
 clean:
 	rm -rf build dist $(VENV) $(NODE_MODULES)

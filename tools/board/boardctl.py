@@ -39,14 +39,21 @@ class BoardError(RuntimeError):
 class VirtualBoard:
     """tools/vboard/server.mjs as a child process with its own flash directory under ``home``."""
 
-    def __init__(self, home, port=0, env=None, fresh=True):
+    def __init__(self, home, port=0, env=None, fresh=True, board="virtual"):
+        # board="pico": the virtual Pico (tools/pico), whose flash is one littlefs image file
         self.home = os.path.abspath(home)
-        self.flash = os.path.join(self.home, "flash")
+        self.board = board
+        self.flash = os.path.join(self.home, "flash.img" if board == "pico" else "flash")
         self.port_arg = int(port)
         self.env = dict(env or {})
         self.proc = None
         self.port = None
         self.lines = []
+        os.makedirs(self.home, exist_ok=True)
+        if board == "pico":
+            if fresh and os.path.exists(self.flash):
+                os.remove(self.flash)
+            return
         if fresh and os.path.isdir(self.flash):
             shutil.rmtree(self.flash)
         os.makedirs(self.flash, exist_ok=True)
@@ -62,7 +69,7 @@ class VirtualBoard:
         e.update(env or {})
         port = self.port if self.port is not None else self.port_arg
         cmd = [NODE, "--disallow-code-generation-from-strings", SERVER, "--port", str(port), "--flash", self.flash,
-               "--pidfile", os.path.join(self.home, "board.pid")]
+               "--pidfile", os.path.join(self.home, "board.pid"), "--board", self.board]
         self.lines = []
         self.proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
                                      env=e, start_new_session=True)

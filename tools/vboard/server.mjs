@@ -49,6 +49,9 @@ function usage(code) {
   --models DIR    extra directory of device-model .py files (repeatable)
   --devices FILE  board wiring module copied in as vboard_devices.py
   --heap BYTES    initial MicroPython heap (default 262144)
+  --board B       virtual (the MicroPython VM, default) or pico (the real RP2040 firmware on an
+                  emulated Raspberry Pi Pico, tools/pico; flash: build/pico/flash.img, pid file
+                  build/pico/board.pid)
   --detach        start in the background (log: the pid file's name with .log), return once listening
   --stop          stop the board whose pid is in --pidfile, then exit`);
   process.exit(code);
@@ -67,8 +70,9 @@ function parseArgs(argv) {
     takeover: false,
     scenario: env.VBOARD_SCENARIO || "steady",
     flashSize: 2 * 1024 * 1024,
-    flash: env.VBOARD_FLASH || path.join(REPO, "build", "vboard", "flash"),
-    pidfile: path.join(REPO, "build", "vboard", "board.pid"),
+    board: env.VBOARD_BOARD || "virtual",
+    flash: env.VBOARD_FLASH || "",
+    pidfile: "",
     models: (env.VBOARD_MODELS || "").split(":").filter(Boolean),
     devices: env.VBOARD_DEVICES || path.join(HERE, "vm", "vboard_devices.py"),
     heap: 262144,
@@ -97,6 +101,7 @@ function parseArgs(argv) {
     else if (a === "--heap") o.heap = Number(val());
     else if (a === "--stop") o.stop = true;
     else if (a === "--detach") o.detach = true;
+    else if (a === "--board") o.board = val();
     else if (a === "-h" || a === "--help") usage(0);
     else {
       console.error(`unknown argument: ${a}`);
@@ -115,6 +120,13 @@ function parseArgs(argv) {
     console.error(`virtual board: --flash-size must be a whole number of bytes >= 65536, got ${o.flashSize}`);
     process.exit(2);
   }
+  if (!["virtual", "pico"].includes(o.board)) {
+    console.error(`virtual board: --board must be virtual or pico, got '${o.board}'`);
+    process.exit(2);
+  }
+  const home = path.join(REPO, "build", o.board === "pico" ? "pico" : "vboard");
+  if (!o.flash) o.flash = o.board === "pico" ? path.join(home, "flash.img") : path.join(home, "flash");
+  if (!o.pidfile) o.pidfile = path.join(home, "board.pid");
   if (!o.tty) o.tty = path.join(path.dirname(o.pidfile), "tty");
   return o;
 }
@@ -303,7 +315,7 @@ function startWorker(soft = false, mode = "friendly") {
   Atomics.store(ctl, CTL.BUSY, 0);
   // an "output ready" message of a terminated worker is never delivered: re-arm
   drainOutput();
-  const w = new Worker(path.join(HERE, "vm_worker.mjs"), {
+  const w = opts.board === "pico" ? picoWorker() : new Worker(path.join(HERE, "vm_worker.mjs"), {
     workerData: {
       shared,
       wasmDir,
@@ -337,6 +349,20 @@ function startWorker(soft = false, mode = "friendly") {
     if (w !== worker) return;
     console.error(`virtual board: VM thread failed: ${e.stack || e}`);
     hardReset();
+  });
+}
+
+// The virtual Pico (tools/pico/pico_worker.mjs): the same serial rings; its firmware does
+// Ctrl-C, resets and the raw REPL itself.
+function picoWorker() {
+  fs.mkdirSync(path.dirname(opts.flash), { recursive: true });
+  return new Worker(path.join(REPO, "tools", "pico", "pico_worker.mjs"), {
+    workerData: {
+      shared,
+      image: opts.flash,
+      world: { scenario: opts.scenario, profile: opts.profile, timeScale: opts.timeScale },
+      realtime: process.env.PICO_REALTIME !== "0",
+    },
   });
 }
 
@@ -579,7 +605,7 @@ let bannerShown = false;
 function announce() {
   if (bannerShown || !listenUrl || (ptyBridge && !ttyShown)) return;
   bannerShown = true;
-  const mb = (opts.flashSize / 1048576).toFixed(opts.flashSize % 1048576 ? 2 : 0);
+  const mb = opts.board === "pico" ? "1.38" : (opts.flashSize / 1048576).toFixed(opts.flashSize % 1048576 ? 2 : 0);
   const room = opts.profile ? `profile ${opts.profile}` : `scenario ${opts.scenario}`;
   console.log(
     (ttyShown ? `  REPL: mpremote connect ${ttyShown} repl\n` : "") +
@@ -597,7 +623,8 @@ server.once("listening", () => {
   writePidfile();
   startWorker();
   listenUrl = `socket://${opts.host}:${port}`;
-  console.log(`virtual board: MicroPython VM listening on ${listenUrl}`);
+  console.log(opts.board === "pico" ? `virtual Pico: RP2040 firmware listening on ${listenUrl}`
+    : `virtual board: MicroPython VM listening on ${listenUrl}`);
   if (opts.pty) startPty();
   announce();
 });
