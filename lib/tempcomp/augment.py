@@ -371,7 +371,11 @@ def _kernel():
             import sys
 
             if sys.maxsize >> 31 == 0:
-                from tempcomp import augment_native
+                try:
+                    from tempcomp import augment_native
+                except ValueError:
+                    # an armv7m .mpy on a Cortex-M0+ (RP2040): the armv6m build beside it (make dist)
+                    from tempcomp import augment_native_m0 as augment_native  # pyright: ignore[reportAttributeAccessIssue]
 
                 _kmod = augment_native
                 Augmented.apply = augment_native.apply  # pyright: ignore[reportAttributeAccessIssue]
@@ -762,7 +766,7 @@ class Augmented:
         for i in range(w[_NTAU]):
             w[p + 3] = 0
             if w[p]:
-                w[p + 2] = _fix(_exp(-float(up) / self._aux[0][i]), _Q)
+                w[p + 2] = _fix(_exp(-float(up) / self._aux[0][i]), _Q)  # pyright: ignore[reportOptionalSubscript]
             p += _TREC
 
     def layout(self, stride=6, raw=0, acc=-1, temp=-1):
@@ -806,7 +810,7 @@ class Augmented:
             w[_NB] = n
             w[_FL] |= _FBURST
             try:
-                self.apply(t, buf, out, dt_ms, supply, acc)
+                self.apply(t, buf, out, dt_ms, supply, acc)  # pyright: ignore[reportCallIssue]
             finally:
                 w[_FL] &= ~_FBURST  # a call refused before the kernel read it leaves no burst behind
 
@@ -817,6 +821,7 @@ class Augmented:
         # burst's lengths, so a later call checks them by comparing), or raise the clear error
         # of a wrong argument (the kernel reads and writes 32-bit words)
         k = _kernel()
+        assert k is not None  # only the native kernel calls this
         w = self._w
         if burst:
             if not k.buffer(raw):
