@@ -871,9 +871,11 @@ class Augmented:
             to = w[_TOFF]
         if fl & _FSUP:
             w[_SUPS] = supply
+        tr = t  # the burst's reading, clamped (and counted) for every sample as apply() would
         i = 0
         j = 0
         while i < n:
+            t = tr
             if st:
                 # the burst's big-endian int16 words
                 p = j + ro
@@ -893,6 +895,9 @@ class Augmented:
                     w[_AS + 1] = ((raw[p + 2] << 8 | raw[p + 3]) ^ 0x8000) - 0x8000
                     w[_AS + 2] = ((raw[p + 4] << 8 | raw[p + 5]) ^ 0x8000) - 0x8000
                 else:
+                    if acc is None:
+                        raise ValueError("acc must be an array('i') of at least 3 ints (the model reads the "
+                                         "accelerometer), got NoneType")
                     w[_AS] = acc[0]
                     w[_AS + 1] = acc[1]
                     w[_AS + 2] = acc[2]
