@@ -315,6 +315,7 @@ _AF = const(7)  # the axis' terms: _AGAIN sensitivity, _AOFFS offset, _ACROSS cr
 _AGAIN = const(1)
 _AOFFS = const(2)
 _ACROSS = const(4)
+_ASTEPT = const(8)  # the axis has terms of step features (their share computed per reading)
 _OT = const(8)  # where the axis' term lists start: count, then (value index, coefficient)
 _GT = const(9)
 _CR = const(10)  # cross terms: count, then (axis k, k0, k1), one per k
@@ -654,7 +655,8 @@ class Augmented:
             ab = _AXB + _AXS * i
             so, to, sg, tg, fo = terms[i]
             w[ab + _FO] = fo
-            w[ab + _AF] = (_AGAIN if sg or tg else 0) | (_AOFFS if so or to else 0) | (_ACROSS if cross[i] else 0)
+            w[ab + _AF] = ((_AGAIN if sg or tg else 0) | (_AOFFS if so or to else 0) | (_ACROSS if cross[i] else 0)
+                           | (_ASTEPT if to or tg else 0))
             for slot, lst in ((_OT, so), (_SOT, to), (_GT, sg), (_SGT, tg)):
                 w[ab + slot] = len(w)
                 w.append(len(lst))
@@ -980,8 +982,9 @@ class Augmented:
         dtf = w[w[_DTI]] if w[_DTI] >= 0 else 0
         for i in range(3):
             ab = _AXB + _AXS * i
-            w[ab + _DS] = _terms(w, w[ab + _SOT], 0)
-            w[ab + _ES] = _terms(w, w[ab + _SGT], 0)
+            if w[ab + _AF] & _ASTEPT:
+                w[ab + _DS] = _terms(w, w[ab + _SOT], 0)
+                w[ab + _ES] = _terms(w, w[ab + _SGT], 0)
             p = w[ab + _CR]
             n = w[p]
             rho = w[ab + _RHO]

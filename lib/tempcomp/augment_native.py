@@ -102,6 +102,7 @@ _AF = const(7)
 _AGAIN = const(1)
 _AOFFS = const(2)
 _ACROSS = const(4)
+_ASTEPT = const(8)
 _OT = const(8)
 _GT = const(9)
 _CR = const(10)
@@ -811,7 +812,9 @@ def step(wp, t: int):
     xb = ptr32(int(w) + (_AXB << 2))
     ax = 3
     while ax:
-        k = 2
+        k = 0
+        if xb[_AF] & _ASTEPT:
+            k = 2
         while k:
             if k == 2:
                 rq = ptr32(int(w) + (xb[_SOT] << 2))
