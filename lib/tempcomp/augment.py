@@ -31,27 +31,48 @@ Usage (the model from ``--export``, or loaded from the store with ``from_store``
     aug = Augmented(load_json("/model.json"))
     aug.start(0)                                   # power-on now (uptime in ms)
     aug.apply(t, raw, out, dt_ms, supply, acc)     # per sample; raw/out/acc array('i') of 3
+    aug.apply_be16_n(t, buf, out, n, dt_ms, supply, acc)   # a FIFO burst of n samples
 
 ``t`` is the temperature reading (``T = t * t_lsb + t_off`` degC), ``raw`` the raw codes
 (``raw * raw_lsb`` out units), ``supply`` the supply reading (``supply * supply_lsb`` V), ``acc``
 the accelerometer (``acc * acc_lsb`` g); ``out`` receives ref * out_scale, rounded. ``dt_ms`` is the
-time since the previous sample in ms, or -1 to take it from ``time.ticks_ms()``.
+time since the previous sample in ms, or -1 to take it from ``time.ticks_ms()``. All six are
+positional and required (pass 0 and None for a supply and an accelerometer the model does not
+read): the native kernel is a viper method, which takes no defaults. Call ``aug.apply(...)``
+itself in the loop: a bound method made beforehand (``ap = aug.apply``) copies more than four
+arguments through the heap on every call. A burst (``layout()`` says where each sample's words
+are: raw codes, optionally the accelerometer's and the temperature, big-endian int16) gives the
+same numbers as its samples through ``apply``, dt_ms apart, with t, supply and acc held unless
+the layout reads them from each sample. ``clamped()`` counts the values clamped so far.
 
-Fixed point (B = 2**30 is the small-int bound; every clamp is counted in ``clamped``):
+Where the interpreter has the viper emitter and 32-bit ints (MicroPython on Cortex-M), ``apply``
+and ``apply_be16_n`` are tempcomp.augment_native's viper methods, and a sample's body runs in
+asm_thumb (tempcomp.augment_thumb, Thumb-1: Cortex-M0+ to M7); elsewhere this module's
+pure-Python kernel, which they reproduce bit for bit (``use_native(False)`` picks it). Work is
+done as rarely as its inputs change: the model's integers at set-up, the base gain and offset
+term, rho, the features of the reading alone (dT and products of them) with their terms, and the
+cross matrix when the reading changes (``_step``), the filters' steps alpha when dt changes,
+the rest per sample.
+
+Fixed point (B = 2**30 is the small-int bound; every clamp is counted in ``clamped()``):
 
 * Features are ints with |f| < 2**15 in units fixed at set-up (each clamped to its bound).
   Filter states are t-readings * 2**12 (|.| <= 2**27) plus a 16-bit sub-unit carry, so a
   slow filter never stalls; the step alpha = 1 - exp(-dt/tau) is in Q28, built from a table
   of exp(-2**k ms/tau) when dt changes.
-* Terms ``mul_shift(c, f, 15)`` with |c| <= 2**28: sum of |c| <= 2**28 per axis, so dO (in
-  2**-F raw units) and e (Q28, |e| <= 1/16) stay below 2**29.
+* Terms ``mul_shift(c, f, 15)`` with |c| <= 2**28, by c's 14-bit limbs (|c >> 14| <= 2**14:
+  each product <= 2**29): sum of |c| <= 2**28 per axis, so dO (in 2**-F raw units) and e (Q28,
+  |e| <= 1/16) stay below 2**29.
 * The base step is the Compensator's, with dO's integer part taken off the raw code and its
   8-bit fraction times the gain's high limb (<= 2**21) added: the sum stays below 2**30, and
   the result keeps 2 guard bits (|y| <= 2**25).
-* e and K are scaled by rho = s(t0)/s(T) (Q28, from the Compensator's gain, on a new
-  reading); 1/(1+e) by its series to e**4 (error < 2**-15 of y) and the cross-axis solve by
-  two fixed-point iterations y = (y0 - K y) / (1 + e) (error ~|K|**3 of y); all products Q28
-  by 14-bit limbs (``_mul28``).
+* e and K are scaled by rho = s(t0)/s(T) (Q28) = (G << s) R / 2**26 on a new reading, G the
+  Compensator's gain, R = 2**54 / (G0 << s) from set-up with G0 << s in [2**26, 2**27): G << s
+  < 2**28 (the scale varies at most 2x), 4 ah bh < 2**30 (``_mul26``); 1/(1+e) by its series to
+  e**4 (error < 2**-15 of y) and the cross-axis solve by two fixed-point iterations
+  y = (y0 - K y) / (1 + e) (error ~|K|**3 of y); all products Q28 by 14-bit limbs (``_mul28``).
+* drift_hyp's (tau >> e) << 14 // (tau + (uptime >> e)): the quotient has 15 bits (the asm
+  kernel divides bit by bit: the Cortex-M0+ has no divider).
 """
 
 try:

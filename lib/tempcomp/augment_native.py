@@ -9,10 +9,13 @@ runs. The arithmetic is the pure kernel's (``Augmented._apply`` and ``_step``, `
 +-2**30 there (augment's and fixedpoint's module notes), so 32-bit machine words never wrap and the
 results are bit-identical to Python's unbounded integers.
 
-The per-sample entry is the class method ``Augmented.apply`` (this module's ``apply``): a method
-called as ``aug.apply(...)`` passes its seven arguments without copying them to the heap, and
-the kernel reaches no module globals (each would cost a globals swap on every call); the step,
-the clock and the sample's body are found through ``self``.
+The per-sample entries are the class methods ``Augmented.apply`` and ``apply_be16_n`` (this module's
+``apply`` and ``apply_be16_n``): a method called as ``aug.apply(...)`` passes its seven arguments
+without copying them to the heap. The base model alone takes the shortest path in ``apply``
+itself; a model with terms hands its samples, in one run for a whole burst, to
+``augment_thumb.run`` (``vrun`` here where the port has no inline assembler: ``use_asm``). The
+arrays a call reads and writes are checked once (32-bit int arrays, a burst's lengths) and
+known after that by their buffer addresses, which the model holds references to.
 """
 
 # ruff: noqa: F821

@@ -1,13 +1,18 @@
-"""asm_thumb body of an ``Augmented`` model's general sample (``tempcomp.augment_native`` calls it
-once per sample): the filters' step, the features, the terms, per axis y0 and 1 / (1 + rho e),
-the cross-axis solve, as ``augment._general`` does them, word for word (every intermediate within
-+-2**30 there, so 32-bit registers never wrap and the results are bit-identical).
+"""asm_thumb kernel of an ``Augmented`` model's general samples (``tempcomp.augment_native`` calls
+``run`` once per sample, or once per burst): each sample's raw codes (int32 words, or a burst's
+big-endian int16 bytes with the accelerometer's), the uptime, drift_hyp's division, the filters'
+step, the features, the terms, per axis y0 and 1 / (1 + rho e), the cross-axis solve and the
+outputs, as ``augment._apply`` and ``augment._general`` do them, word for word (every
+intermediate within +-2**30 there, so 32-bit registers never wrap and the results are
+bit-identical).
 
 Imported by ``augment_native`` where the port has the inline assembler; elsewhere the import fails
-and its viper ``vbody`` runs. Thumb-1 instructions only (no divide, no wide branches), so it runs
-on Cortex-M0+ too; conditional branches stay within 256 bytes. It reads the word array by the
-byte offsets below (augment's layout: the header's first 32 words, the per-axis blocks) and keeps
-its counters in the header's scratch words, so it touches no register the caller keeps (r8-r11).
+and its viper ``vrun`` runs. Thumb-1 instructions only (no divide, no wide branches; the
+register-offset loads and stores are written as ``data()`` halfwords, the inline assembler
+having only the immediate form), so it runs on Cortex-M0+ too; conditional branches stay within
+256 bytes. It reads the word array by the byte offsets below (augment's layout: the header's
+first 32 words, the run block from a second base, the per-axis blocks) and keeps its counters
+in the header's scratch words, so it touches no register the caller keeps (r8-r11).
 """
 
 # ruff: noqa: F821

@@ -109,30 +109,41 @@ import math
 class FloatModel:
     def __init__(self, m):
         self.m = m
-        self.tl = m['t_lsb']
-        self.to = m.get('t_off', 0.0)
-        self.t0 = round((m['t0'] - self.to) / self.tl) * self.tl + self.to
+        tl = m['t_lsb']
+        to = m.get('t_off', 0.0)
+        self.tl = tl
+        self.to = to
+        self.t0a = round((m['t0'] - to) / tl) * tl + to
         self.rl = m.get('raw_lsb', 1.0)
         self.os = m['out_scale']
+        self.kinds = [f['kind'] for f in m.get('features', [])]
         self.f = m.get('features', [])
         self.v = [0.0] * len(self.f)
-        self.lp = {}
-        self.al = {}
-        self.play = {}
+        self.s = [0.0] * len(self.f)  # filter states
+        self.al = [0.0] * len(self.f)
         self.up = 0.0
         self.dt = None
         self.t = None
         self.first = True
         self.s0 = [m['sensitivity'][i][0] for i in range(3)]
+        self.ot = (m.get('offset_terms') or [[], [], []])
+        self.gt = (m.get('gain_terms') or [[], [], []])
+        self.cr = (m.get('cross') or [[], [], []])
+        self.any_cross = any(self.cr)
+        self.o = [0.0, 0.0, 0.0]
+        self.g = [0.0, 0.0, 0.0]
+        self.rho = [1.0, 1.0, 1.0]
+        self.K = [[], [], []]
+        self.y0 = [0.0, 0.0, 0.0]
+        self.e = [1.0, 1.0, 1.0]
         self.y = [0.0, 0.0, 0.0]
     def update(self, t):
+        # once per reading: the polynomials, the gain, rho and the cross matrix
         m = self.m
         T = t * self.tl + self.to
         d = T - m['t0']
         self.T = T
-        self.o = []
-        self.g = []
-        self.rho = []
+        self.dT = T - self.t0a
         for i in range(3):
             o = 0.0
             for c in reversed(m['offset'][i]):
@@ -140,88 +151,94 @@ class FloatModel:
             s = 0.0
             for c in reversed(m['sensitivity'][i]):
                 s = s * d + c
-            self.o.append(o)
-            self.g.append(self.os / s)
-            self.rho.append(self.s0[i] / s)
-        dT = T - self.t0
-        self.K = [[], [], []]
-        for i in range(3):
-            for k, k0, k1 in (m.get('cross') or [[], [], []])[i]:
-                self.K[i].append((int(k), self.rho[i] * (k0 + k1 * dT)))
+            self.o[i] = o + 0.5 * s / self.os  # round half up by truncation below
+            self.g[i] = self.os / s
+            self.rho[i] = self.s0[i] / s
+            self.K[i] = [(int(k), self.rho[i] * (k0 + k1 * self.dT)) for k, k0, k1 in self.cr[i]]
         self.t = t
     def apply(self, t, raw, out, dt_ms, supply, acc):
-        m = self.m
         if t != self.t:
             self.update(t)
         T = self.T
-        self.up += dt_ms / 1000.0
-        if dt_ms != self.dt:
-            self.dt = dt_ms
-            for j in range(len(self.f)):
+        if self.kinds:
+            m = self.m
+            self.up += dt_ms * 0.001
+            if dt_ms != self.dt:
+                self.dt = dt_ms
+                for j in range(len(self.f)):
+                    if 'tau' in self.f[j]:
+                        self.al[j] = 1.0 - math.exp(-dt_ms * 0.001 / self.f[j]['tau'])
+            v = self.v
+            for j in range(len(self.kinds)):
+                k = self.kinds[j]
                 f = self.f[j]
-                if 'tau' in f:
-                    self.al[j] = 1.0 - math.exp(-dt_ms / 1000.0 / f['tau'])
-        v = self.v
-        for j in range(len(self.f)):
-            f = self.f[j]
-            k = f['kind']
-            if k == 'dT':
-                x = T - self.t0
-            elif k == 'lag':
-                s = self.lp.get(j, T)
-                s = T if self.first else s + self.al[j] * (T - s)
-                self.lp[j] = s
-                x = T - s
-            elif k == 'play':
-                h = f['width'] / 2
-                p = self.play.get(j, T)
-                if T - h > p:
-                    p = T - h
-                elif T + h < p:
-                    p = T + h
-                self.play[j] = p
-                x = p - T
-            elif k == 'drift_exp':
-                s = self.lp.get(j, 1.0)
-                s -= self.al[j] * s
-                self.lp[j] = s
-                x = s
-            elif k == 'drift_hyp':
-                x = 1.0 / (1.0 + self.up / f['tau'])
-            elif k == 'uptime':
-                x = self.up
-            elif k == 'supply':
-                x = supply * m['supply_lsb'] - m['supply0']
-            elif k == 'acc':
-                x = acc[int(f['axis'])] * m['acc_lsb']
-            else:
-                x = v[int(f['a'])] * v[int(f['b'])]
-            v[j] = x
-        self.first = False
-        y0 = [0.0, 0.0, 0.0]
-        e = [0.0, 0.0, 0.0]
-        for i in range(3):
-            d = 0.0
-            for fi, c in (m.get('offset_terms') or [[], [], []])[i]:
-                d += c * v[fi]
-            for fi, c in (m.get('gain_terms') or [[], [], []])[i]:
-                e[i] += c * v[fi]
-            y0[i] = (raw[i] * self.rl - self.o[i] - d) * self.g[i]
-            e[i] = 1.0 + self.rho[i] * e[i]
-        y = self.y
-        for i in range(3):
-            y[i] = y0[i] / e[i]
-        for _ in range(2):
-            n = [0.0, 0.0, 0.0]
+                if k == 'dT':
+                    x = self.dT
+                elif k == 'lag':
+                    s = T if self.first else self.s[j] + self.al[j] * (T - self.s[j])
+                    self.s[j] = s
+                    x = T - s
+                elif k == 'play':
+                    h = f['width'] * 0.5
+                    p = T if self.first else self.s[j]
+                    if T - h > p:
+                        p = T - h
+                    elif T + h < p:
+                        p = T + h
+                    self.s[j] = p
+                    x = p - T
+                elif k == 'drift_exp':
+                    s = 1.0 if self.first else self.s[j] - self.al[j] * self.s[j]
+                    self.s[j] = s
+                    x = s
+                elif k == 'drift_hyp':
+                    x = 1.0 / (1.0 + self.up / f['tau'])
+                elif k == 'uptime':
+                    x = self.up
+                elif k == 'supply':
+                    x = supply * m['supply_lsb'] - m['supply0']
+                elif k == 'acc':
+                    x = acc[f['axis']] * m['acc_lsb']
+                else:
+                    x = v[f['a']] * v[f['b']]
+                v[j] = x
+            self.first = False
             for i in range(3):
-                s = y0[i]
-                for k, c in self.K[i]:
-                    s -= c * y[k]
-                n[i] = s / e[i]
-            y[0], y[1], y[2] = n
-        out[0] = int(y[0] + 0.5)
-        out[1] = int(y[1] + 0.5)
-        out[2] = int(y[2] + 0.5)
+                d = 0.0
+                for fi, c in self.ot[i]:
+                    d += c * v[fi]
+                e = 0.0
+                for fi, c in self.gt[i]:
+                    e += c * v[fi]
+                self.y0[i] = (raw[i] * self.rl - self.o[i] - d) * self.g[i]
+                self.e[i] = 1.0 + self.rho[i] * e
+        else:
+            for i in range(3):
+                self.y0[i] = (raw[i] * self.rl - self.o[i]) * self.g[i]
+                self.e[i] = 1.0
+        y0 = self.y0
+        e = self.e
+        y = self.y
+        y[0] = y0[0] / e[0]
+        y[1] = y0[1] / e[1]
+        y[2] = y0[2] / e[2]
+        if self.any_cross:
+            for _ in range(2):
+                n0 = y0[0]
+                for k, c in self.K[0]:
+                    n0 -= c * y[k]
+                n1 = y0[1]
+                for k, c in self.K[1]:
+                    n1 -= c * y[k]
+                n2 = y0[2]
+                for k, c in self.K[2]:
+                    n2 -= c * y[k]
+                y[0] = n0 / e[0]
+                y[1] = n1 / e[1]
+                y[2] = n2 / e[2]
+        out[0] = int(y[0])
+        out[1] = int(y[1])
+        out[2] = int(y[2])
 """
 
 FW_BENCH = r"""
