@@ -390,8 +390,10 @@ def _kernel():
     if not _ktried:
         _ktried = True
         try:
+            import gc
             import sys
 
+            gc.collect()  # the kernels' machine code wants large blocks
             if sys.maxsize >> 31 == 0:
                 try:
                     from tempcomp import augment_native
@@ -402,8 +404,12 @@ def _kernel():
                 _kmod = augment_native
                 Augmented.apply = augment_native.apply  # pyright: ignore[reportAttributeAccessIssue]
                 Augmented.apply_be16_n = augment_native.apply_be16_n  # pyright: ignore[reportAttributeAccessIssue]
-        except (ImportError, SyntaxError, ValueError, NotImplementedError, AttributeError):
-            pass  # CPython, a port without the viper emitter, a .mpy for another architecture
+        except (ImportError, SyntaxError, ValueError, NotImplementedError, AttributeError, MemoryError):
+            # CPython, a port without the viper emitter, a .mpy for another architecture, or a
+            # heap too small to compile the kernels from .py (the .mpy load in a quarter of it)
+            _kmod = None
+            Augmented.apply = Augmented._apply  # pyright: ignore[reportAttributeAccessIssue]
+            Augmented.apply_be16_n = Augmented._apply_be16_n  # pyright: ignore[reportAttributeAccessIssue]
     return _kmod
 
 
@@ -1017,9 +1023,9 @@ class Augmented:
                 n -= 1
 
 
-def _base(w, i, raw):
-    # the base model's sample of axis i, rounded to the output
-    r = raw - w[_MID]
+def _y0(w, ab, r, fr):
+    # the Compensator's sample with 2 guard bits for the axis block at ab: r = raw - mid - di,
+    # clamped to the raw range's half-span (counted); fr, dO's 8-bit fraction, taken off too
     lim = w[_LIM]
     if r > lim:
         r = lim
@@ -1027,9 +1033,13 @@ def _base(w, i, raw):
     elif r < -lim:
         r = -lim
         w[_CL] += 1
-    ab = _AXB + _AXS * i
-    y = (r * w[ab + _GH] + ((r * w[ab + _GL]) >> w[_KB]) - w[ab + _B] + w[_RND]) >> w[_S2]
-    return (y + 2) >> 2
+    g = w[ab + _GH]
+    return (r * g + ((r * w[ab + _GL]) >> w[_KB]) - w[ab + _B] - ((fr * g) >> 8) + w[_RND]) >> w[_S2]
+
+
+def _base(w, i, raw):
+    # the base model's sample of axis i, rounded to the output
+    return (_y0(w, _AXB + _AXS * i, raw - w[_MID], 0) + 2) >> 2
 
 
 def _start_filters(w, x):
@@ -1096,17 +1106,7 @@ def _general(w, r0, r1, r2):
         d = _terms(w, w[ab + _OT], w[ab + _DS]) if w[ab + _AF] & _AOFFS else 0
         fo = w[ab + _FO]
         # dO = di + fr / 256 raw codes, taken off the raw code and the offset term
-        fr = (d >> (fo - 8)) & 0xFF
-        r = w[ab + _RAW] - w[_MID] - (d >> fo)
-        lim = w[_LIM]
-        if r > lim:
-            r = lim
-            w[_CL] += 1
-        elif r < -lim:
-            r = -lim
-            w[_CL] += 1
-        g = w[ab + _GH]
-        w[ab + _Y0] = (r * g + ((r * w[ab + _GL]) >> w[_KB]) - w[ab + _B] - ((fr * g) >> 8) + w[_RND]) >> w[_S2]
+        w[ab + _Y0] = _y0(w, ab, w[ab + _RAW] - w[_MID] - (d >> fo), (d >> (fo - 8)) & 0xFF)
         if w[ab + _AF] & _AGAIN:
             e = _mul28(w[ab + _RHO], _terms(w, w[ab + _GT], w[ab + _ES]))
             # 1 / (1 + e) = 1 - e (1 - e (1 - e (1 - e))) + O(e**5), |e| <= 1/8

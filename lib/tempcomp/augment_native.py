@@ -13,14 +13,14 @@ The per-sample entries are the class methods ``Augmented.apply`` and ``apply_be1
 ``apply`` and ``apply_be16_n``): a method called as ``aug.apply(...)`` passes its seven arguments
 without copying them to the heap. The base model alone takes the shortest path in ``apply``
 itself; a model with terms hands its samples, in one run for a whole burst, to
-``augment_thumb.run`` (``vrun`` here where the port has no inline assembler: ``use_asm``). The
+``augment_thumb.run`` (``augment_vrun.run`` where the port has no inline assembler: ``use_asm``). The
 arrays a call reads and writes are checked once (32-bit int arrays, a burst's lengths) and
 known after that by their buffer addresses, which the model holds references to.
 """
 
 # ruff: noqa: F821
 # pyright: reportUndefinedVariable=false, reportAttributeAccessIssue=false, reportIndexIssue=false
-# pyright: reportOptionalSubscript=false, reportOperatorIssue=false, reportArgumentType=false
+# pyright: reportOptionalSubscript=false, reportOperatorIssue=false, reportArgumentType=false, reportOptionalCall=false
 # (ptr8/ptr32/int/uint casts are viper built-ins)
 
 import array
@@ -394,226 +394,6 @@ def apply_be16_n(self, t: int, buf, out, n: int, dt_ms, supply, acc):
 
 
 @micropython.viper
-def vrun(wp):
-    """augment_thumb.run where the port has no inline assembler: a run of samples (the run
-    block's), each as augment._general does it."""
-    w = ptr32(wp)
-    while w[_NS]:
-        w[_NS] = w[_NS] - 1
-        sp = w[_SRC]
-        if w[_MODE]:
-            sp += w[_ROFF]
-            bq = ptr8(sp)
-            r0 = ((bq[0] << 8 | bq[1]) ^ 0x8000) - 0x8000
-            r1 = ((bq[2] << 8 | bq[3]) ^ 0x8000) - 0x8000
-            r2 = ((bq[4] << 8 | bq[5]) ^ 0x8000) - 0x8000
-            if w[_AOFF] >= 0:
-                bq = ptr8(w[_SRC] + w[_AOFF])
-                w[_AS] = ((bq[0] << 8 | bq[1]) ^ 0x8000) - 0x8000
-                w[_AS + 1] = ((bq[2] << 8 | bq[3]) ^ 0x8000) - 0x8000
-                w[_AS + 2] = ((bq[4] << 8 | bq[5]) ^ 0x8000) - 0x8000
-        else:
-            q = ptr32(sp)
-            r0 = q[0]
-            r1 = q[1]
-            r2 = q[2]
-        if w[_DTR] >= 0:
-            u = w[_UPT] + w[_DTR]
-            if u < w[_UPMAX]:
-                w[_UPT] = u
-        n = w[_NHYP]
-        q = ptr32(int(w) + (w[_PHYP] << 2))
-        while n:
-            a = q[1]
-            w[q[0] >> 2] = (a << 14) // (a + (w[_UPT] >> q[2]))
-            q = ptr32(int(q) + 12)
-            n -= 1
-        cl = w[_CL] + w[_SCL]
-        x = w[_XS]
-        if w[_FILT]:
-            q = ptr32(int(w) + (w[_PTAU] << 2))
-            n = w[_NTAU]
-            while n:
-                # v += alpha * (target - v), exact to 2**-16 of a unit (carry in q[3])
-                a = q[1]
-                v = q[2]
-                if q[0]:
-                    e = 0 - v
-                else:
-                    e = x - v
-                ah = a >> 14
-                al = a & 0x3FFF
-                dh = e >> 14
-                dl = e & 0x3FFF
-                m = ah * dl + al * dh
-                lo = ((m & 0x3FFF) << 14) + al * dl
-                s = q[3] + ((lo & 0xFFFFFFF) >> 12)
-                q[2] = v + ah * dh + (m >> 14) + (lo >> 28) + (s >> 16)
-                q[3] = s & 0xFFFF
-                q = ptr32(int(q) + _TREC * 4)
-                n -= 1
-            q = ptr32(int(w) + (w[_PPLAY] << 2))
-            n = w[_NPLAY]
-            while n:
-                h = q[0]
-                li = q[1]
-                xi = x
-                if li >= 0:
-                    xi = w[li >> 2]
-                if xi - h > q[2]:
-                    q[2] = xi - h
-                elif xi + h < q[2]:
-                    q[2] = xi + h
-                q = ptr32(int(q) + 12)
-                n -= 1
-        # the sample's features (augment._features)
-        n = w[_NSF]
-        q = ptr32(int(w) + ((w[_PSF] + 4) << 2))
-        while n:
-            k = q[0]
-            a = w[q[2] >> 2]
-            b = q[3]
-            if k == _OSUBC:
-                v = a - b
-            elif k == _OSUB:
-                v = a - w[b >> 2]
-            elif k == _OMUL:
-                v = a * w[b >> 2]
-            else:
-                v = a >> b
-            b = q[4]
-            if v > b:
-                v = b
-                cl += 1
-            elif v < 0 - b:
-                v = 0 - b
-                cl += 1
-            k = q[5]
-            if k < 0:
-                v <<= 0 - k
-            elif k:
-                v = (v + (1 << (k - 1))) >> k
-                if v > _FMAX:
-                    v = _FMAX
-                elif v < 0 - _FMAX:
-                    v = 0 - _FMAX
-            w[q[1] >> 2] = v
-            q = ptr32(int(q) + _FREC * 4)
-            n -= 1
-        mid = w[_MID]
-        lim = w[_LIM]
-        ax = 0
-        while ax < 3:
-            xb = ptr32(int(w) + ((_AXB + _AXS * ax) << 2))
-            if ax == 0:
-                r = r0
-            elif ax == 1:
-                r = r1
-            else:
-                r = r2
-            xb[_RAW] = r
-            e = 0
-            if xb[_AF] & _AOFFS:
-                e = xb[_DS]
-                q = ptr32(int(w) + (xb[_OT] << 2))
-                n = q[0]
-                while n:
-                    f = w[q[1] >> 2]
-                    e += (q[2] * f + ((q[3] * f) >> 14)) >> 1
-                    q = ptr32(int(q) + 12)
-                    n -= 1
-            k = xb[_FO]
-            f = (e >> (k - 8)) & 0xFF
-            r = r - mid - (e >> k)
-            if r > lim:
-                r = lim
-                cl += 1
-            elif r < 0 - lim:
-                r = 0 - lim
-                cl += 1
-            g = xb[_GH]
-            xb[_Y0] = (r * g + ((r * xb[_GL]) >> w[_KB]) - xb[_B] - ((f * g) >> 8) + w[_RND]) >> w[_S2]
-            if xb[_AF] & _AGAIN:
-                e = xb[_ES]
-                q = ptr32(int(w) + (xb[_GT] << 2))
-                n = q[0]
-                while n:
-                    f = w[q[1] >> 2]
-                    e += (q[2] * f + ((q[3] * f) >> 14)) >> 1
-                    q = ptr32(int(q) + 12)
-                    n -= 1
-                a = xb[_RHO]
-                ah = a >> 14
-                al = a & 0x3FFF
-                bh = e >> 14
-                bl = e & 0x3FFF
-                e = ah * bh + ((ah * bl + al * bh + ((al * bl) >> 14)) >> 14)
-                # 1 / (1 + e) = 1 - e (1 - e (1 - e (1 - e))), |e| <= 1/8
-                a = _ONE - e
-                ah = e >> 14
-                al = e & 0x3FFF
-                n = 3
-                while n:
-                    bh = a >> 14
-                    bl = a & 0x3FFF
-                    a = _ONE - (ah * bh + ((ah * bl + al * bh + ((al * bl) >> 14)) >> 14))
-                    n -= 1
-                xb[_INV] = a
-                a = xb[_Y0]
-                b = xb[_INV]
-                ah = a >> 14
-                al = a & 0x3FFF
-                bh = b >> 14
-                bl = b & 0x3FFF
-                xb[_Y] = ah * bh + ((ah * bl + al * bh + ((al * bl) >> 14)) >> 14)
-            else:
-                xb[_Y] = xb[_Y0]
-            ax += 1
-        w[_CL] = cl
-        if w[_FL] & _FCROSS:
-            # y = (y0 - K y) / (1 + e), two steps from y0 / (1 + e) (augment._general)
-            it = 2
-            while it:
-                ax = 0
-                while ax < 3:
-                    xb = ptr32(int(w) + ((_AXB + _AXS * ax) << 2))
-                    s = xb[_Y0]
-                    q = ptr32(int(w) + (xb[_CR] << 2))
-                    n = q[0]
-                    while n:
-                        k = q[1]
-                        a = xb[_KM + k]
-                        b = w[_AXB + _AXS * k + _Y]
-                        ah = a >> 14
-                        al = a & 0x3FFF
-                        bh = b >> 14
-                        bl = b & 0x3FFF
-                        s -= ah * bh + ((ah * bl + al * bh + ((al * bl) >> 14)) >> 14)
-                        q = ptr32(int(q) + 12)
-                        n -= 1
-                    if xb[_AF] & _AGAIN:
-                        b = xb[_INV]
-                        ah = s >> 14
-                        al = s & 0x3FFF
-                        bh = b >> 14
-                        bl = b & 0x3FFF
-                        s = ah * bh + ((ah * bl + al * bh + ((al * bl) >> 14)) >> 14)
-                    w[_O + ax] = s
-                    ax += 1
-                w[_AXB + _Y] = w[_O]
-                w[_AXB + _AXS + _Y] = w[_O + 1]
-                w[_AXB + 2 * _AXS + _Y] = w[_O + 2]
-                it -= 1
-        q = ptr32(w[_OUTP])
-        q[0] = (w[_AXB + _Y] + 2) >> 2
-        q[1] = (w[_AXB + _AXS + _Y] + 2) >> 2
-        q[2] = (w[_AXB + 2 * _AXS + _Y] + 2) >> 2
-        w[_OUTP] = w[_OUTP] + 12
-        w[_SRC] = w[_SRC] + w[_STR]
-        w[_FILT] = w[_HASF]
-
-
-@micropython.viper
 def step(wp, t: int):
     """augment.Augmented._step: what depends on the reading t alone (clamped already), with
     fixedpoint.Compensator.update's arithmetic for the base (the _UREC records of augment._urec)."""
@@ -782,13 +562,14 @@ def step(wp, t: int):
     rq = ptr32(int(w) + ((w[_PTF] + 4) << 2))
     cl = 0
     while n:
-        # dT (w[_TS] - t0) and products of step features
-        a = rq[2]
+        # dT and products of step features (_features' loop, inline: a call here costs 300
+        # instructions a reading)
+        a = w[rq[2] >> 2]
         b = rq[3]
         if rq[0] == _OSUBC:
-            v = w[a >> 2] - b
+            v = a - b
         else:
-            v = w[a >> 2] * w[b >> 2]
+            v = a * w[b >> 2]
         b = rq[4]
         if v > b:
             v = b
@@ -851,23 +632,29 @@ def step(wp, t: int):
         xb = ptr32(int(xb) + _AXS * 4)
         ax -= 1
 
+def _vrun():
+    # the viper run, a module of its own: only where there is no asm_thumb (or for the tests)
+    try:
+        from tempcomp import augment_vrun
+    except ValueError:  # the armv6m build where the armv7m one is refused
+        from tempcomp import augment_vrun_m0 as augment_vrun  # pyright: ignore[reportMissingImports]
+    return augment_vrun.run
 
-_run = vrun  # a run of samples: asm_thumb where the port has the inline assembler
+
+_asm = None  # a run of samples: asm_thumb where the port has the inline assembler
 try:
     from tempcomp import augment_thumb
 
-    _run = augment_thumb.run
+    _asm = augment_thumb.run
 except (ImportError, SyntaxError, ValueError, NotImplementedError, AttributeError):
     pass
+_run = _asm or _vrun()
 
 
 def use_asm(on):
     """Run the general samples with the asm_thumb kernel (True, where there is one) or the viper
     one (False): the same numbers (tests compare them)."""
     global _run
-    if on:
-        from tempcomp import augment_thumb
-
-        _run = augment_thumb.run
-    else:
-        _run = vrun
+    if on and _asm is None:
+        raise ValueError("use_asm(True): this port has no asm_thumb")
+    _run = _asm if on else _vrun()
