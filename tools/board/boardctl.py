@@ -68,7 +68,8 @@ class VirtualBoard:
         e.update(self.env)
         e.update(env or {})
         port = self.port if self.port is not None else self.port_arg
-        cmd = [NODE, "--disallow-code-generation-from-strings", SERVER, "--port", str(port), "--flash", self.flash,
+        cmd = [NODE, "--disallow-code-generation-from-strings", "--max-old-space-size=256", SERVER,
+               "--port", str(port), "--flash", self.flash,
                "--pidfile", os.path.join(self.home, "board.pid"), "--board", self.board]
         self.lines = []
         self.proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
@@ -126,8 +127,8 @@ class Remote:
         cmd = [sys.executable, "-m", "mpremote", "connect", self.port] + list(args)
         for attempt in range(5):
             out, err, code = self._mpremote(cmd, timeout)
-            # the virtual board takes one client at a time and refuses a connection until it has
-            # read the previous command's close (nothing was sent: running it again is safe)
+            # the board was not listening yet (or no longer): nothing was sent, running it again is
+            # safe (a second client while one is attached is accepted, told why and closed)
             if not (code == 1 and "failed to access" in err and self.port.startswith("socket://")):
                 break
             time.sleep(0.2 * (attempt + 1))
