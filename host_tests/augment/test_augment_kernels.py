@@ -265,6 +265,9 @@ def scs():
 
 
 def test_native_asm_viper_and_pure_agree_on(interp, scs):
+    if interp.name == "an500":
+        # the M7 runs the M3's .mpy: the base model, every term and the corners suffice there
+        scs = [sc for sc in scs if sc[0] in ("base", "every term", "every kind, every axis", "extremes")]
     out = device_run(lambda code: interp.run(code, timeout=900), scs)
     native = interp.name in ("an385", "an500")
     # doubles at set-up (wasm, CircuitPython's unix port) give CPython's integers; the M3/M7
