@@ -11,7 +11,8 @@ import zlib
 import pytest
 
 from tempcomp import store as st
-from tempcomp.store_check import crc_bitwise
+from tempcomp.store_check import parse
+from tempcomp.store_crc import crc32 as crc_bitwise
 from tools.board import storetool
 
 
@@ -193,6 +194,6 @@ def test_malformed_entry_is_named_in_words(tmp_path, change, words):
         assert s.load("gyro0") == (1, -2)
     assert len(s.warnings) == 1
     assert s.warnings[0].startswith(p + " " + words + "; using %s.old (generation 1)" % p), s.warnings
-    assert st._parse(_image(1, [_entry(**bad)]), False)[1] == words
+    assert parse(_image(1, [_entry(**bad)]), False)[1] == words
     # two entries of one name
-    assert st._parse(_image(2, [_entry(**E1), _entry(**E1)]), False)[1] == "is malformed: entry 1: name 'gyro0' appears twice"
+    assert parse(_image(2, [_entry(**E1), _entry(**E1)]), False)[1] == "is malformed: entry 1: name 'gyro0' appears twice"
