@@ -95,6 +95,27 @@ def _batch(p, t, words, checked):
 
 
 @micropython.viper
+def _word(a) -> int:
+    return ptr32(a)[1]
+
+
+def int32(a):
+    # True when array a stores 32-bit two's-complement words (typecode i, or l on 32-bit):
+    # tempcomp.augment_native's check of its output arrays
+    x = a[0]
+    y = a[1]
+    try:
+        a[0] = 0x12345
+        a[1] = -2
+        ok = _word(a) == -2 and a[1] == -2 and a[0] == 0x12345
+    except (OverflowError, TypeError):
+        ok = False
+    a[0] = x
+    a[1] = y
+    return ok
+
+
+@micropython.viper
 def _many(p, buf, out, n: int, stride: int):
     # any out sequence: stored through its own item assignment
     b = ptr8(buf)

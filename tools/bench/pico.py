@@ -104,6 +104,16 @@ ROWS = [
 ]
 
 
+AUG_ROWS = [
+    ("c", "augmented model, %s, reading unchanged"),
+    ("t", "  same, the temperature reading changing every sample"),
+    ("b", "  same, per sample of a burst of 32 (apply_be16_n)"),
+    ("c_pure", "  forced pure Python, reading unchanged"),
+    ("t_pure", "  forced pure Python, reading changing"),
+    ("float", "  its float anchor (careful float code), reading unchanged"),
+    ("float_t", "  its float anchor, reading changing"),
+]
+
 ALLOC_ROWS = [
     ("apply_be16", "heap per call, apply_be16 (native)"),
     ("apply_be16_pure", "heap per call, apply_be16 pure Python"),
@@ -126,18 +136,20 @@ def measure(pico):
 
 
 def augmented(pico):
-    """{name: (unpack floor, reading unchanged, reading changing)} cycles per 3-axis sample of
-    the augmented model (tools/bench/augment.py's models and firmware script: the base model and
-    every term on), as lib/tempcomp/augment.py is in this tree."""
+    """{name: {key: cycles per 3-axis sample}} of the augmented model on the Pico, base and every
+    term on: tools/bench/augment.py's firmware script (its keys: c / t the reading unchanged /
+    changing every sample, b per sample of a burst, *_pure forced to pure Python, float / float_t
+    its float anchor, plain the plain apply_be16; lock 'ok' when samples and bursts ran under
+    heap_lock()), on the library as it is in this tree."""
     from tools.bench import augment
-    from tools.bench.core import UNPACK_FLOOR
 
     res = {}
     for name, m in (("base", augment.model([])), ("every term", augment.model(list(augment.TERMS)))):
-        out = pico.run(augment.FW_BENCH % {"model": json.dumps(m), "n": 200, "pad": 0, "unpack": UNPACK_FLOOR},
-                       timeout=1800)
+        out = pico.run("import json\n" + augment.FW_BENCH % {
+            "model": json.dumps(m), "name": name, "n": 200, "pad": 0, "batch": augment.BATCH,
+            "modes": [None, False], "anchor": 1, "float_model": augment.FLOAT_MODEL}, timeout=1800)
         line = [ln for ln in out.splitlines() if ln.startswith("INSN ")][0]
-        res[name] = tuple(int(v) * CYCLES_PER_NS for v in line.split()[1:])
+        res[name] = {k: (v * CYCLES_PER_NS if k != "lock" else v) for k, v in json.loads(line[5:]).items()}
     return res
 
 
@@ -176,17 +188,21 @@ def bench(report):
                 print("  %-66s %10.1f bytes" % (label, got["ALLOC " + key]), flush=True)
         aug = augmented(pico)
         for name in ("base", "every term"):
-            fl, r0, r1 = aug[name]
-            print("  %-66s %10s cycles" % ("augmented model, %s, temperature reading unchanged" % name,
-                                           "{:,.0f}".format(r0)), flush=True)
-            print("  %-66s %10s cycles" % ("  same, reading changing every sample", "{:,.0f}".format(r1)), flush=True)
+            r = aug[name]
+            for key, label in AUG_ROWS:
+                if key in r:
+                    print("  %-66s %10s cycles" % (label % name, "{:,.0f}".format(r[key])), flush=True)
         heap = [line.split()[1:] for line in pico.run(BOOT_HEAP).splitlines() if line.startswith("HEAP")][0]
         report("Pico: 3-axis apply_be16 (native), cycles beyond the loop", got["apply_be16"], "cycles")
         report("Pico: same, pure Python / a typical driver's float sample",
                got["apply_be16_pure"] / got["float_driver"], "x")
         report("Pico: batch apply_be16_n, per sample", got["apply_be16_n"], "cycles")
-        report("Pico: augmented model, every term, reading changing / a typical driver's float sample",
-               aug["every term"][2] / got["float_driver"], "x")
+        ev = aug["every term"]
+        report("Pico: augmented model, every term, reading changing / its float anchor",
+               ev["t"] / ev["float_t"], "x (%.0f / %.0f cycles)" % (ev["t"], ev["float_t"]))
+        report("Pico: augmented model, base / the plain apply_be16 sample", aug["base"]["c"] / aug["base"]["plain"], "x")
+        report("Pico: augmented model under heap_lock(), base and every term",
+               "ok" if aug["base"]["lock"] == ev["lock"] == "ok" else "FAIL", "")
         report("Pico: read_compensated / read_raw through the real I2C",
                got["real_read_compensated"] / got["real_read_raw"], "x")
         report("Pico: heap at boot (free of total)", float(heap[1]) / 1024, "KB of %.0f KB" % (float(heap[0]) / 1024))
