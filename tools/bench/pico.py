@@ -191,7 +191,7 @@ def bench(report):
             r = aug[name]
             for key, label in AUG_ROWS:
                 if key in r:
-                    print("  %-66s %10s cycles" % (label % name, "{:,.0f}".format(r[key])), flush=True)
+                    print("  %-66s %10s cycles" % (label.replace("%s", name), "{:,.0f}".format(r[key])), flush=True)
         heap = [line.split()[1:] for line in pico.run(BOOT_HEAP).splitlines() if line.startswith("HEAP")][0]
         report("Pico: 3-axis apply_be16 (native), cycles beyond the loop", got["apply_be16"], "cycles")
         report("Pico: same, pure Python / a typical driver's float sample",
