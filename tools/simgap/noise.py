@@ -418,10 +418,17 @@ def search(ll_of, n, s2_init, dt, ad_fit=None):
     gain = max(TERM_GAIN, 0.5 * np.log(n))     # BIC per parameter, at least TERM_GAIN
 
     def material(kind):
-        # A term must matter: what it adds over the log (random walk q n / 6, Gauss-Markov g2)
-        # at least 2 % of the white variance - else the filter stays the identity.
+        # Each term must matter on its own: what it adds over the log (random walk q n / 6,
+        # Gauss-Markov g2) at least 2 % of the white variance - else it stays out. A walk
+        # that moves nothing still makes the bias's level free at every filter restart
+        # (a burst, a run), which frees a temperature law from its levels.
         q, g2, _ = cands[kind][1]
-        return q * n / 6 + g2 > 0.02 * s2
+        ok = True
+        if "rw" in kind:
+            ok &= q * n / 6 > 0.02 * s2
+        if "gm" in kind:
+            ok &= g2 > 0.02 * s2
+        return ok
 
     best = "white"
     for kind in ("rw", "gm", "rw+gm"):
