@@ -45,9 +45,9 @@ def test_the_three_kernels_share_one_layout():
     # the asm kernel's byte offsets: word index * 4 (the run block from its own base)
     blocks = {"_AXB4": "_AXB", "_AXS4": "_AXS", "_RUN4": "_SRC", "_TREC4": "_TREC", "_FREC4": "_FREC"}
     run = {"_SRC4", "_OUTP4", "_NS4", "_MODE4", "_STR4", "_ROFF4", "_AOFF4", "_DTR4", "_HASF4",
-           "_NHYP4", "_PHYP4", "_UPMAX4"}
+           "_NHYP4", "_PHYP4", "_UPMAX4", "_TC4", "_PTF4", "_DTI4"}
     axis = {"_GH4", "_GL4", "_B4", "_RHO4", "_DS4", "_ES4", "_FO4", "_AF4", "_OT4", "_GT4", "_CR4", "_Y04",
-            "_INV4", "_Y4", "_KM4", "_RAW4"}
+            "_INV4", "_Y4", "_KM4", "_RAW4", "_SOT4", "_SGT4", "_RS4", "_RR4"}
     checked = 0
     for k, v in thumb.items():
         if not k.endswith("4"):

@@ -589,6 +589,7 @@ class Augmented:
         c.update(t0r if t_lo <= t0r <= t_hi else (t_lo + t_hi) // 2)
         w = [0] * _HDR
         w[_TC] = t_lo - 1
+        w[_TS] = t_lo - 1  # the native kernels run the terms' step while _TS is behind _TC
         w[_TLO] = t_lo
         w[_THI] = t_hi
         w[_DTC] = -1
