@@ -1,10 +1,11 @@
-"""Native kernel of ``tempcomp.augment``: an ``Augmented`` model's per-sample path and per-reading
-step in @micropython.viper, on the word array its set-up lays out, with the general sample's
-body in asm_thumb (``tempcomp.augment_thumb``) where the port has the inline assembler.
+"""Native kernel of ``tempcomp.augment``: an ``Augmented`` model's per-sample path and the base's
+per-reading step in @micropython.viper, on the word array its set-up lays out, with the general
+sample's body and the terms' per-reading step in asm_thumb (``tempcomp.augment_thumb``) where the
+port has the inline assembler.
 
 Imported by ``augment`` on first use where the interpreter has the viper emitter and 32-bit ints
 (MicroPython firmware on Cortex-M); elsewhere the import fails and augment's pure-Python kernel
-runs. The arithmetic is the pure kernel's (``Augmented._apply`` and ``_step``, ``_general``,
+runs. The arithmetic is the pure kernel's (``augment_pure.apply``, ``step``, ``_general``,
 ``fixedpoint.Compensator.update``), operation for operation: every intermediate is proven within
 +-2**30 there (augment's and fixedpoint's module notes), so 32-bit machine words never wrap and the
 results are bit-identical to Python's unbounded integers.
@@ -398,7 +399,7 @@ def step(wp, t: int):
     """The base's part of augment_pure.step: what depends on the reading t alone (clamped
     already), with fixedpoint.Compensator.update's arithmetic (the _UREC records of
     augment._urec). The terms' part (rho, the step features, their terms, the cross matrix) runs
-    in the general sample's kernel, once it sees _TS behind _TC (augment_thumb's TSTEP)."""
+    in the general sample's kernel, when it sees _TS differ from _TC (augment_thumb's TSTEP)."""
     w = ptr32(wp)
     kb = w[_KB]
     xb = ptr32(int(w) + (_AXB << 2))

@@ -1,8 +1,10 @@
 """asm_thumb kernel of an ``Augmented`` model's general samples (``tempcomp.augment_native`` calls
-``run`` once per sample, or once per burst): each sample's raw codes (int32 words, or a burst's
-big-endian int16 bytes with the accelerometer's), the uptime, drift_hyp's division, the filters'
-step, the features, the terms, per axis y0 and 1 / (1 + rho e), the cross-axis solve and the
-outputs, as ``augment._apply`` and ``augment._general`` do them, word for word (every
+``run`` once per sample, or once per burst): first, when the base's viper step has moved to a
+new reading, the terms' part of that step (rho, the step features and their share of the terms,
+the cross matrix' rows: one run has one reading); then each sample's raw codes (int32 words, or a
+burst's big-endian int16 bytes with the accelerometer's), the uptime, drift_hyp's division, the
+filters' step, the features, the terms, per axis y0 and 1 / (1 + rho e), the cross-axis solve and
+the outputs, as ``augment_pure.step`` and ``_general`` do them, word for word (every
 intermediate within +-2**30 there, so 32-bit registers never wrap and the results are
 bit-identical).
 

@@ -1,8 +1,8 @@
 """The viper run of an ``Augmented`` model's general samples (``augment_thumb.run`` where the port
-has the inline assembler): each sample's raw codes, the uptime, drift_hyp's values, the filters'
-step, the features, the terms, per axis y0 and 1 / (1 + rho e), the cross-axis solve and the
-outputs, as ``augment._apply`` and ``augment._general`` do them, word for word (every
-intermediate within +-2**30 there, so 32-bit machine words never wrap).
+has the inline assembler): a new reading's terms step, then each sample's raw codes, the uptime,
+drift_hyp's values, the filters' step, the features, the terms, per axis y0 and 1 / (1 + rho e),
+the cross-axis solve and the outputs, as ``augment_pure.step`` and ``_general`` do them, word for
+word (every intermediate within +-2**30 there, so 32-bit machine words never wrap).
 
 A module of its own, imported by ``augment_native`` only where there is no asm_thumb (a viper-only
 port) or when a test asks for it (``augment_native.use_asm(False)``): on Cortex-M its code would
