@@ -196,22 +196,25 @@ def bench(report):
     fw, spread, why = firmware_costs(models)
     if fw is not None:
         fl = fw["base"][0]
+        report("augment: the 6-byte unpack floor (Cortex-M3 firmware)", fl, "instructions", key="m3_floor")
         report("augment: base model per 3-axis sample (Cortex-M3 firmware, reading unchanged)", fw["base"][1],
                "instructions (%.1fx the unpack floor; %d..%d over %d heap layouts)"
-               % (fw["base"][1] / fl, spread["base"][0], spread["base"][1], len(PADS)))
+               % (fw["base"][1] / fl, spread["base"][0], spread["base"][1], len(PADS)), key="m3_base")
         report("augment: same, temperature reading changing every sample", fw["base"][2],
-               "instructions (%.1fx)" % (fw["base"][2] / fl))
+               "instructions (%.1fx)" % (fw["base"][2] / fl), key="m3_base_t")
         for n in names[1:]:
             report("augment: + %s, extra per sample" % n, fw[n][1] - fw["base"][1],
                    "instructions (%.1fx the floor; total %d..%d)" % ((fw[n][1] - fw["base"][1]) / fl,
-                                                                     spread[n][0], spread[n][1]))
+                                                                     spread[n][0], spread[n][1]),
+                   key="m3_extra_" + n.replace(" ", "_").replace("(", "").replace(")", ""))
         report("augment: every term, reading changing every sample", fw["every term"][2],
-               "instructions (%.1fx)" % (fw["every term"][2] / fl))
+               "instructions (%.1fx)" % (fw["every term"][2] / fl), key="m3_every_term_t")
         ram = fw["ram"]
-        report("augment: heap for the module (.mpy) on the Cortex-M3 firmware (fixedpoint: %d)" % ram[0], ram[1], "B")
-        report("augment: heap of a first Augmented (base; with first-use interning) / a second (every term)",
-               "%d / %d" % (ram[2], ram[3]), "B")
-        report("augment: Cortex-M3 firmware run wall time", time.time() - t0, "s")
+        report("augment: heap for fixedpoint (.mpy) on the Cortex-M3 firmware", ram[0], "B", key="ram_fixedpoint")
+        report("augment: heap for the module (.mpy) on the Cortex-M3 firmware", ram[1], "B", key="ram_module")
+        report("augment: heap of a first Augmented (base; with first-use interning)", ram[2], "B", key="ram_first")
+        report("augment: heap of a second Augmented (every term)", ram[3], "B", key="ram_second")
+        report("augment: Cortex-M3 firmware run wall time", time.time() - t0, "s", key="m3_wall")
         _vm_precision(report, time.time())
         return
     report("augment: Cortex-M3 firmware not available (%s); VM time ratios instead" % why, "", "")
@@ -245,9 +248,12 @@ def _vm_precision(report, t0):
     inp["raw"] = np.clip(np.round(devmodel.predict(m, inp, ref, F)), -32768, 32767).astype(np.int64)
     y, info = replay.run_device(m, inp)
     err = np.abs(y - devmodel.compensate(m, inp, F) * m["out_scale"])
-    report("augment: bytes allocated per sample, every term on (VM)", info["allocated_per_sample"], "B")
-    report("augment: clamped feature values in that run (0: all inside their bounds)", info.get("clamped", 0), "")
-    report("augment: heap-locked samples, every term on", "ok" if info["heap_locked"] else "FAIL", "")
-    report("augment: worst error vs float64, every term, %d samples" % n, float(err.max()), "output LSB")
-    report("augment: RMS error vs float64, every term", float(np.sqrt(np.mean(err ** 2))), "output LSB")
-    report("augment: VM run wall time", time.time() - t0, "s")
+    report("augment: bytes allocated per sample, every term on (VM)", info["allocated_per_sample"], "B", key="alloc",
+           ok=info["allocated_per_sample"] == 0)
+    report("augment: clamped feature values in that run (0: all inside their bounds)", info.get("clamped", 0), "",
+           key="clamped")
+    report("augment: heap-locked samples, every term on", "ok" if info["heap_locked"] else "FAIL", "", key="locked",
+           ok=bool(info["heap_locked"]))
+    report("augment: worst error vs float64, every term, %d samples" % n, float(err.max()), "output LSB", key="worst")
+    report("augment: RMS error vs float64, every term", float(np.sqrt(np.mean(err ** 2))), "output LSB", key="rms")
+    report("augment: VM run wall time", time.time() - t0, "s", key="vm_wall")

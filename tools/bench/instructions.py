@@ -499,6 +499,11 @@ def bench(report):
     for line in table(results):
         print("  " + line, flush=True)
     for name, label in BOARDS:
+        for key, row in ROWS:
+            if key in results.get(name, {}):
+                report("instructions: %s, %s" % (label, row), results[name][key], "instructions per call",
+                       key="%s_%s" % (name, key))
+    for name, label in BOARDS:
         if name in results:
             r = results[name]
             if "apply_be16" in r and "float_naive" in r:
@@ -568,4 +573,4 @@ if __name__ == "__main__":
         for name, note in why.items():
             print("%s: %s" % (name, note), file=sys.stderr)
     else:
-        bench(lambda name, value, unit: print("  %-72s %s %s" % (name, value, unit)))
+        bench(lambda name, value, unit, key=None, ok=None: print("  %-72s %s %s" % (name, value, unit)))

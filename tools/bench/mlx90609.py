@@ -119,8 +119,8 @@ def bench(report):
     out = mpvm.run(_VM, mounts=(os.path.join(REPO, "tools", "sim") + ":/simdir",), paths=("/simdir",))
     alloc = mpvm.alloc_lines(out)
     b, ok = alloc["rate"]
-    report("mlx90609 bytes per compensated sample (driver read + compensate, VM)", b, "bytes")
-    report("mlx90609 heap-locked read + compensate", 1.0 if ok else 0.0, "ok")
+    report("mlx90609 bytes per compensated sample (driver read + compensate, VM)", b, "bytes", ok=b == 0)
+    report("mlx90609 heap-locked read + compensate", "ok" if ok else "FAIL", "", ok=bool(ok))
     line = [ln for ln in out.splitlines() if ln.startswith("TIME ")][0].split()
     tf, tc, tu, td, n = (int(x) for x in line[1:])
     report("mlx90609 unpack floor per sample (VM)", tf / n, "us")
@@ -133,4 +133,4 @@ def bench(report):
 
 
 if __name__ == "__main__":
-    bench(lambda name, value, unit: print("%-75s %10.4f %s" % (name, value, unit)))
+    bench(lambda name, value, unit, key=None, ok=None: print("%-75s %10s %s" % (name, value, unit)))
