@@ -13,6 +13,7 @@ import pytest
 import seeds
 from paths import REPO, skip_unless_ci
 
+from tools.bench import record
 from tools.simgap import export, replay
 from tools.simgap.diagnose import diagnose
 from tools.simgap.logio import write_log
@@ -39,6 +40,14 @@ def test_device_shrink_equals_host_shrink(effect):
         assert abs(dev - host) <= 0.005 + 0.02 * host, (a, host, dev)
     # the generator put the effect on x: the board's own output shows it gone
     assert full["rms"]["x"] < 0.6 * base["rms"]["x"]
+    # README's before/after table (rendered from make bench's record, tools/bench/augment.py's
+    # shrink) is what the code gives now: deterministic, so to the record's six digits
+    rows = record.load()["areas"]["augment"]["rows"]
+    for key, now in (("base", base["rms"]["x"]), ("aug", full["rms"]["x"]),
+                     ("ratio", full["rms"]["x"] / base["rms"]["x"]), ("host", h["augmented"]["x"] / h["base_only"]["x"])):
+        was = rows["shrink_%s_%s" % (effect, key)]["value"]
+        assert was == pytest.approx(now, rel=2e-6), (
+            "docs/bench.json's %s %s is %r, the code gives %r: run `python -m tools bench augment`" % (effect, key, was, now))
     for r in (full, base):
         assert r["allocated_per_sample"] == 0 and r["heap_locked"]
         assert r["rows"] == 3000 and r["unit"] == "dps"

@@ -5,13 +5,17 @@ VM's time ratios to the unpack floor when the firmware is not built); bytes allo
 and the worst error against float64 (tools/simgap/devmodel.py) with every term on, in the VM."""
 
 import json
+import os
+import sys
 import time
 
 import numpy as np
 
+from tools import REPO
 from tools.bench.core import UNPACK_FLOOR
 from tools.firmware import interp, mpvm
-from tools.simgap import devmodel, replay
+from tools.simgap import devmodel, export, replay
+from tools.simgap.diagnose import diagnose
 
 BASE = {"t_lsb": 0.01, "t_off": 0.0, "raw_lsb": 1.0, "raw_range": [-32768, 32767], "out_scale": 100.0,
         "t0": 25.0, "t_cal": [-10.0, 60.0], "supply_lsb": 0.001, "supply0": 3.3, "acc_lsb": 0.001,
@@ -189,7 +193,35 @@ def firmware_costs(models, n=200):
     return res, spread, None
 
 
+def shrink(report):
+    """README's before/after table: on logs with one effect each from the test suite's generator
+    (host_tests/helpers/augsynth.py, written apart from the diagnosis), the board's withheld RMS of
+    the sim alone and of the augmented model (the device code replayed in the VM), axis x, and the
+    host's ratio (the diagnosis' own); host_tests/augment/test_export_replay.py recomputes them."""
+    sys.path.insert(0, os.path.join(REPO, "host_tests", "helpers"))
+    try:
+        import augsynth
+    finally:
+        sys.path.remove(os.path.join(REPO, "host_tests", "helpers"))
+    for effect in augsynth.EFFECTS:
+        tr, wh = augsynth.make(effect), augsynth.make(effect, withheld=True)
+        res, _ = diagnose(tr, wh)
+        exp = export.build(res, tr)
+        full, _ = replay.replay(exp, wh)
+        base, _ = replay.replay(exp, wh, base_only=True)
+        h = exp["host"]["rms"]
+        report("augment: %s log, board RMS of the sim alone, axis x (withheld)" % effect, base["rms"]["x"], "dps",
+               key="shrink_%s_base" % effect)
+        report("augment: %s log, board RMS of the augmented model, axis x" % effect, full["rms"]["x"], "dps",
+               key="shrink_%s_aug" % effect)
+        report("augment: %s log, board ratio augmented / sim alone, axis x" % effect,
+               full["rms"]["x"] / base["rms"]["x"], "", key="shrink_%s_ratio" % effect)
+        report("augment: %s log, the host's ratio (the diagnosis' withheld RMS), axis x" % effect,
+               h["augmented"]["x"] / h["base_only"]["x"], "", key="shrink_%s_host" % effect)
+
+
 def bench(report):
+    shrink(report)
     t0 = time.time()
     names = ["base"] + list(TERMS) + ["every term"]
     models = [("base", model([]))] + [(n, model([n])) for n in TERMS] + [("every term", model(list(TERMS)))]

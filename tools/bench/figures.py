@@ -18,6 +18,7 @@ markers on the page and run ``python -m tools bench --docs``.
 
 import os
 import re
+import textwrap
 
 from tools import REPO
 
@@ -37,6 +38,8 @@ class Figure:
         v = self.value
         if v is None:
             return "n/a"
+        if spec == "" and isinstance(v, float) and v.is_integer():
+            return str(int(v))  # a count or a byte figure
         if spec == "kb":
             return "%.1f" % (v / 1024.0)
         if spec == "k":
@@ -87,9 +90,15 @@ BLOCKS = {}
 
 
 def render(template, rec):
-    if callable(template):
-        return template(Record(rec))
-    return template.format_map(Record(rec))
+    text = template(Record(rec)) if callable(template) else template.format_map(Record(rec))
+    return "\n\n".join(_wrap(p) for p in text.split("\n\n"))
+
+
+def _wrap(paragraph):
+    # prose as the pages have it (lines of at most 100 characters); tables as they are
+    if paragraph.lstrip().startswith("|"):
+        return paragraph
+    return textwrap.fill(" ".join(paragraph.split()), width=100, break_long_words=False, break_on_hyphens=False)
 
 
 def blocks(text):
@@ -155,3 +164,361 @@ def missing(rec):
         except Missing as e:
             out.append("%s: %s (%s)" % (page, name, e.args[0]))
     return out
+
+
+# -- the templates -----------------------------------------------------------------------------
+
+def _kb(fig):
+    return "MemoryError" if fig.value is None else "%.1f KB" % (fig.value / 1024.0)
+
+
+def _n(v):
+    return "{:,.0f}".format(v)
+
+
+def _dates(r, areas):
+    """'2026-11-25' when the areas come from the full run, else each area's own date."""
+    full = r["run"].get("date")
+    own = {a: r[a].date for a in areas}
+    if full and all(d == full for d in own.values()):
+        return full
+    return ", ".join("%s %s" % (a, d) for a, d in own.items())
+
+
+def measured_intro(r):
+    run = r["run"]
+    areas = ("core", "mlx90609", "mpu6xxx", "fit", "augment", "fleet", "store", "simgap", "ram")
+    when = _dates(r, areas)
+    load = ", ".join("%s %.1f" % (a, r[a].load) for a in areas)
+    return (
+        "From `make bench` (`docs/bench.json`, the record this table is rendered from; measured %s%s), "
+        "on a %d-core %s machine, Python %s, with these load averages when each area started: %s (a "
+        "load above the core count slows the host and VM rows; instruction counts and heap figures do "
+        "not depend on it). Where a row says VM, the figure comes from the MicroPython 1.27 WebAssembly "
+        "VM (32-bit object model), each time a ratio to a floor measured in the same run, interleaved "
+        "and repeated (minimum kept); AN385 rows come from the MicroPython 1.27.0 Cortex-M3 firmware "
+        "under QEMU (heap measured with `gc.mem_alloc()` after `gc.collect()`); host rows from CPython "
+        "on one core."
+        % (when, " in %.0f min" % run["wall_min"] if run.get("wall_min") and when == run.get("date") else "",
+           r["core"].cpus, r["core"].machine, r["core"].python, load))
+
+
+def measured(r):
+    c, m, p, f, a, fl, st, sg, ram = (r[k] for k in ("core", "mlx90609", "mpu6xxx", "fit", "augment", "fleet",
+                                                     "store", "simgap", "ram"))
+    mods = [k for k in r.rec["areas"]["ram"]["rows"] if k.startswith("py_tempcomp")]
+    big = ram.py_largest
+    rows = [
+        ("bytes allocated per compensated 3-axis sample (core, VM)",
+         "**%s** (also runs under `heap_lock`)" % c.alloc, "0"),
+        ("same formula with float coefficients (VM)",
+         "%s B per sample: at 1 kHz a GC every ~%.1f s on 100 kB free heap (derived)" % (c.float_alloc, c.float_gc_s.value),
+         "contrast"),
+        ("time per compensated 3-axis sample / unpacking the 6-byte burst (VM)", "**%.2fx**" % c.apply_ratio.value, "≤ 2x"),
+        ("same, temperature changing on every sample (scales varying with t: the full update)",
+         "%.0fx (update the temperature at a lower rate or when it changes)" % c.update_ratio.value, "—"),
+        ("worst error vs float64, all 65,536 raw codes x 9 temperatures x 3 axes",
+         "**%.4f output LSB**; %.2f %% of samples equal the correctly rounded value" % (c.worst.value, c.exact_pct.value),
+         "≤ 0.7 + \\|y\\| × 2^-24 on any set the set-up accepts ([the fixed-point core](#the-fixed-point-core))"),
+        ("MLX90609: bytes per driver read + compensate; time vs its unpack floor (VM)",
+         "%s B; %.1fx (single axis)" % (m.alloc, m.ratio.value), "—"),
+        ("MLX90609: worst error vs the note's equations 3-13", "%.3f LSB (1 LSB = 1 milli-°/s)" % m.worst.value, "—"),
+        ("MPU-6500: bytes per captured FIFO packet / per compensated sample (VM)",
+         "%s B / %s B" % (p.alloc_packet, p.alloc_sample), "0"),
+        ("MPU-6500: time per captured packet vs its 12-byte unpack floor (VM)", "%.1fx" % p.packet_ratio.value, "—"),
+        ("MPU-6500: time per `read_compensated` sample vs the 14-byte unpack floor (VM; the bus read is one C call, "
+         "as `machine.I2C`'s), default `temp_avg=16`: temperature steady / TEMP_OUT noise of a real log / a new "
+         "temperature step on every sample",
+         "**%.2fx / %.2fx / %.2fx** (`read_raw`: %.2fx); with `temp_avg=1`: %.2fx / %.2fx / %.2fx" % (
+             p.comp_steady16_ratio.value, p.comp_noisy16_ratio.value, p.comp_ramp16_ratio.value, p.raw_ratio.value,
+             p.comp_steady1_ratio.value, p.comp_noisy1_ratio.value, p.comp_ramp1_ratio.value), "≤ 2x"),
+        ("MPU-6500: bias left after calibration, datasheet noise, 6 faces",
+         "gyro %.2f LSB at ±250 dps (half a register step: 2), accel %.2f mg" % (p.bias_gyro.value, p.bias_accel.value),
+         "—"),
+        ("AN12760 3-axis / ADXRS rate / cross-axis (constant; temperature law updated every sample): bytes per "
+         "sample (VM)", "%s / %s / %s; %s B" % (f.vm_an12760_3axis_new_t_alloc, f.vm_adxrs_rate_alloc,
+                                                f.vm_crossaxis_alloc, f.vm_crossaxis_law_new_t_alloc), "0"),
+        ("AN12760 fixed point vs float; cross-axis correction (constant; cubic temperature law)",
+         "%.4f LSB; %.2f; %.2f LSB" % (f.an12760_worst_error.value, f.crossaxis_worst_error.value,
+                                        f.crossaxis_law_worst_error.value), "—"),
+        ("augmented model, every term on (VM): bytes per sample; worst / RMS error vs float64",
+         "%s B; %.2f / %.2f output LSB ([per-term cost](#from-a-log-to-the-board-the-augmented-model))"
+         % (a.alloc, a.worst.value, a.rms.value), "0"),
+        ("six-position fit of 10,000 units (3 temps x 6 orientations x 3 axes x 200 samples), one core",
+         "%.1f s" % f.fit_sixpos_10000_units.value, "< 60 s"),
+        ("fleet through the command line: 10,000 six-position units, one CSV each (360 rows), read + fit + device "
+         "check + summary + JSON, one core", "%.1f s CPU (%.0f units/s)" % (fl.cpu_s.value, fl.units_per_s.value),
+         "< 60 s"),
+        ("store: 4 sensors x 24 values (VM)",
+         "%s bytes; save %s ms, load %s ms (one call each, the VM's millisecond clock); lookups %s B" % (
+             st.store_image_4_sensors_x_24_values, st.store_save_vm_in_memory_fs, st.store_load_of_4_records_vm,
+             st.store_get_into_allocation), "—"),
+        ("sim-to-real gap, read + diagnose, one core, one BLAS thread: 20k + 20k / 200k + 200k / 1M + 1M rows",
+         "%.1f s, %.0f MB / %.1f s, %.0f MB / %.1f s, %.0f MB (logs over 100,000 rows are diagnosed on every k-th row, "
+         "k = 10 at 1 M; the JSON states it in `rows.stride`)" % (
+             sg.rows_20000_s.value, sg.rows_20000_mb.value, sg.rows_200000_s.value, sg.rows_200000_mb.value,
+             sg.rows_1000000_s.value, sg.rows_1000000_mb.value), "< 60 s, < 1.5 GB at 1 M"),
+        ("AN385 (Cortex-M3, ~140 KB heap): every module imported from `.py`",
+         "%s fit; the largest, `%s`, %s" % (
+             "all %d" % len(mods) if ram.py_imports.value == len(mods) else "%s of %d" % (ram.py_imports, len(mods)),
+             big.value.split(".")[-1], big.row["unit"]),
+         "all import"),
+        ("AN385: `import tempcomp.session` from `.mpy` / frozen",
+         "**%s** / %s (was 73-79 KB)" % (_kb(ram.session_mpy), _kb(ram.session_frozen)), "≤ 40 KB"),
+        ("AN385: boot restoring one MPU-6500's offset registers from the store, then reads, `.mpy` / frozen",
+         "**%s** / %s ([docs/ram.md](docs/ram.md))" % (_kb(ram.boot_registers_mpy), _kb(ram.boot_registers_frozen)),
+         "≤ 24 KB"),
+        ("AN385: the same boot with software offset(T) resumed from record `mpu_tcc` (`compensate(mpu_tcc, mpu_tc)`), "
+         "`.mpy` / frozen", "**%s** / %s (was 52 KB rebuilding the `BiasModel` at boot)" % (
+             _kb(ram.boot_tcc_mpy), _kb(ram.boot_tcc_frozen)), "≤ 24 KB"),
+        ("AN385: the same records read from the store's const() export (`calib_const.py`), `.mpy` / frozen",
+         "**%s** / %s" % (_kb(ram.boot_const_mpy), _kb(ram.boot_const_frozen)), "≤ 24 KB"),
+        ("AN385: the same through the convenience `tempcomp.sensors.restore(board)`, `.mpy` / frozen",
+         "%s%s / %s" % (_kb(ram.boot_sensors_mpy), _over(ram.boot_sensors_mpy, 24), _kb(ram.boot_sensors_frozen)),
+         "≤ 24 KB"),
+        ("AN385: software offset(T) rebuilt at boot (`compensate(BiasModel.from_ints(...))`), `.mpy` / frozen",
+         "%s%s / %s (the fixed-point set-up and its exact fit; use `mpu_tcc`)" % (
+             _kb(ram.boot_model_mpy), _over(ram.boot_model_mpy, 24), _kb(ram.boot_model_frozen)), "≤ 24 KB"),
+    ]
+    out = ["| figure | value | target |", "|---|---|---|"]
+    out += ["| %s | %s | %s |" % row for row in rows]
+    return "\n".join(out)
+
+
+def _over(fig, budget_kb):
+    v = fig.value
+    if v is None or v <= budget_kb * 1024:
+        return ""
+    return " (**over budget** by %.1f KB)" % ((v - budget_kb * 1024) / 1024.0)
+
+
+def instructions_intro(r):
+    return (
+        "`python -m tools bench instructions` (part of `make bench`; rendered from `docs/bench.json`), "
+        "measured %s: MicroPython 1.27.0 firmware on QEMU 7.2 `mps2-an385` (Cortex-M3) and `mps2-an500` "
+        "(Cortex-M7) with `-icount shift=0`, where the emulated clock advances 1 ns per executed "
+        "instruction, so `time.ticks_us()` over n calls counts instructions (the host's load does not "
+        "change them)." % r["instructions"].date)
+
+
+def instructions(r):
+    from tools.bench.instructions import README_ROWS
+
+    i = r["instructions"]
+    out = ["| instructions per call | Cortex-M3 | Cortex-M7 |", "|---|---:|---:|"]
+    for key, label in README_ROWS:
+        cells = []
+        for board in ("an385", "an500"):
+            v = getattr(i, "%s_%s" % (board, key)).value
+            c = "-" if v is None else _n(v)
+            cells.append("**%s**" % c if label.startswith("**") else c)
+        out.append("| %s | %s |" % (label, " | ".join(cells)))
+    return "\n".join(out)
+
+
+def instructions_after(r):
+    i = r["instructions"]
+
+    def m3(k):
+        return getattr(i, "an385_" + k).value
+
+    return (
+        "A compensated 3-axis sample costs %.2fx the careful float code and %.3fx the naive one on the "
+        "Cortex-M3, and allocates nothing (the float versions allocate on every call). The batch's "
+        "argument checks are compiled with `@micropython.native` (231 per sample before). Its fixed cost per "
+        "call is a few thousand instructions (argument checks, the call; 3,480 for one sample measured "
+        "separately from `.py` files, where 32 samples gave 175 per sample) and its loop about 90 per sample: "
+        "about 122 per sample at 64 and 109 at 85 (a full 512-byte FIFO of 6-byte gyro samples). The "
+        "per-temperature `update(t)` with scales that vary with t is the expensive step (about %s instructions; "
+        "124,000 before the quick division and the inline Horner steps): call it when the temperature changes, "
+        "or every n-th sample (`temp_every`), not on every sample. With constant scales (the MPU-6xxx) it is "
+        "Horner only, and `read_compensated` runs it at most once per block of `temp_avg` temperature readings "
+        "(default 16): with a new temperature step on every sample it costs %.2fx `read_raw` on the Cortex-M3 "
+        "(%.2fx with `temp_avg=1`, where every sample pays for the update; 244,000 instructions before this work), "
+        "%.2fx with the temperature steady. `read_raw` itself costs %.2fx the 14-byte unpack floor (the replay "
+        "bus: a Python method around one C call, standing in for `machine.I2C`'s)."
+        % (m3("apply_be16") / m3("float_careful"), m3("apply_be16") / m3("float_naive"),
+           _n(round(m3("update"), -2)), m3("read_compensated") / m3("read_raw"),
+           m3("read_compensated_avg1") / m3("read_raw"), m3("read_compensated_steady") / m3("read_raw"),
+           m3("read_raw") / m3("unpack14")))
+
+
+def instructions_heap(r):
+    i = r["instructions"]
+    return (
+        "In the table, `read_compensated` with the temperature steady costs %s instructions after a "
+        "collection, %s with 50 KB more live data on the heap, and %s with the loop under `heap_lock()`."
+        % (_n(i.an385_read_compensated_steady.value), _n(i.an385_read_compensated_steady_live.value),
+           _n(i.an385_read_compensated_steady_locked.value)))
+
+
+SHRINK = (("temp_rate", "temp_rate (die lags the reading, tau 150 s)"), ("hysteresis", "hysteresis (backlash 4 degC)"),
+          ("drift", "drift (80 LSB, tau 400 s)"), ("supply", "supply (120 LSB/V)"),
+          ("g_sensitivity", "g_sensitivity (25/-15/10 LSB/g)"), ("cross_axis", "cross_axis (1.2 % and -0.8 %)"))
+
+
+def augment_shrink(r):
+    a = r["augment"]
+    out = ["| effect | sim alone | augmented | ratio (host) |", "|---|---|---|---|"]
+    for key, label in SHRINK:
+        out.append("| %s | %.3f | %.3f | %.3f (%.3f) |" % (
+            label, getattr(a, "shrink_%s_base" % key).value, getattr(a, "shrink_%s_aug" % key).value,
+            getattr(a, "shrink_%s_ratio" % key).value, getattr(a, "shrink_%s_host" % key).value))
+    return "\n".join(out)
+
+
+def augment_cost(r):
+    a = r["augment"]
+
+    def k(key):
+        return "%dk" % int(round(getattr(a, key).value / 1000.0))
+
+    return (
+        "Per-sample cost on the Cortex-M3 firmware (`python -m tools bench augment`, executed instructions "
+        "under qemu -icount, the least of 5 heap layouts, each loop after `gc.collect()`, %s): base model %s "
+        "instructions (%.0fx unpacking the burst; %s when the temperature reading changes every sample); extra "
+        "per term: temp_rate %s, hysteresis %s, drift %s (exp) / %s (hyperbolic), supply %s, g_sensitivity %s, "
+        "cross_axis %s, every term %s; heap %.1f KB for the module (.mpy; fixedpoint %.1f KB more) and %.1f-%.1f KB "
+        "per model; %s bytes allocated per sample; worst error against float64 with every term %.2f output LSB "
+        "(RMS %.2f)." % (
+            a.date, k("m3_base"), a.m3_base.value / a.m3_floor.value, k("m3_base_t"), k("m3_extra_temp_rate"),
+            k("m3_extra_hysteresis"), k("m3_extra_drift_exp"), k("m3_extra_drift_hyperbolic"), k("m3_extra_supply"),
+            k("m3_extra_g_sensitivity"), k("m3_extra_cross_axis"), k("m3_extra_every_term"),
+            a.ram_module.value / 1024.0, a.ram_fixedpoint.value / 1024.0,
+            min(a.ram_first.value, a.ram_second.value) / 1024.0, max(a.ram_first.value, a.ram_second.value) / 1024.0,
+            a.alloc, a.worst.value, a.rms.value))
+
+
+def augment_shrink_words(r):
+    a = r["augment"]
+    return ("host / board, effect axis x: " + ", ".join(
+        "%s %.3f / %.3f" % (key, getattr(a, "shrink_%s_host" % key).value, getattr(a, "shrink_%s_ratio" % key).value)
+        for key, _ in SHRINK) + " (`python -m tools bench augment`, %s; `host_tests/augment/test_export_replay.py` "
+        "recomputes them)." % a.date)
+
+
+def simgap_speed(r):
+    s = r["simgap"]
+    out = ["| rows (training + withheld) | read + diagnose | rows/s | peak memory |", "|---|---|---|---|"]
+    for n, label in ((20000, "20,000 + 20,000"), (200000, "200,000 + 200,000 (stride 2)"),
+                     (1000000, "1,000,000 + 1,000,000 (stride 10)")):
+        out.append("| %s | %.1f s | %s | %.0f MB |" % (label, getattr(s, "rows_%d_s" % n).value,
+                                                       _n(getattr(s, "rows_%d_per_s" % n).value),
+                                                       getattr(s, "rows_%d_mb" % n).value))
+    return "\n".join(out) + "\n\n(`python -m tools bench simgap`, %s, load average %.1f at its start.)" % (s.date, s.load)
+
+
+def ram_targets(r):
+    ram = r["ram"]
+    rows = ram._entry["rows"]
+    mods = [k[3:] for k in rows if k.startswith("py_tempcomp")]
+    big = sorted(mods, key=lambda m: -(rows["py_" + m]["value"] or 0))[:2]
+
+    def met(fig, budget_kb):
+        v = fig.value
+        if v is None:
+            return "**not met** (MemoryError)"
+        spare = budget_kb - v / 1024.0
+        return ("met, with %.1f KB to spare" % spare) if spare >= 0 else ("**not met** (%.1f KB over)" % -spare)
+
+    out = ["| target | figure | |", "|---|---|---|",
+           "| every module imports from `.py` on the 140 KB heap | %s (largest: `%s` %s, `%s` %s) | %s |" % (
+               "all %d" % len(mods) if ram.py_imports.value == len(mods) else "%s of %d" % (ram.py_imports, len(mods)),
+               big[0], _kb(getattr(ram, "py_" + big[0])), big[1],
+               _kb(getattr(ram, "py_" + big[1])), "met" if ram.py_imports.row.get("ok") else "**not met**"),
+           "| `import tempcomp.session` <= 40 KB from `.mpy` | %s | %s |" % (_kb(ram.session_mpy), met(ram.session_mpy, 40)),
+           "| boot path <= 24 KB from `.mpy`: offset registers restored (the part subtracts them itself), raw reads, "
+           "`check(every_ms=)` | %s | %s |" % (_kb(ram.boot_registers_mpy), met(ram.boot_registers_mpy, 24)),
+           "| the same with software offset(T) resumed from record `mpu_tcc` (`compensate(mpu_tcc, mpu_tc)`, "
+           "`read_compensated`) | %s | %s |" % (_kb(ram.boot_tcc_mpy), met(ram.boot_tcc_mpy, 24)),
+           "| the same through `tempcomp.sensors.restore` (it resumes `mpu_tcc` when the store has it) | %s | %s |" % (
+               _kb(ram.boot_sensors_mpy), met(ram.boot_sensors_mpy, 24)),
+           "| the same records read from the store's const() export `calib_const.py` instead of the store (below) "
+           "| %s | %s |" % (_kb(ram.boot_const_mpy), met(ram.boot_const_mpy, 24)),
+           "| software offset(T) rebuilt from the model at boot (`compensate(BiasModel.from_ints(...))`) | %s | %s |" % (
+               _kb(ram.boot_model_mpy), met(ram.boot_model_mpy, 24)),
+           "| `import tempcomp.session`, frozen into the firmware | %s | %s |" % (
+               _kb(ram.session_frozen), met(ram.session_frozen, 40)),
+           "| boot paths frozen into the firmware | %s (registers), %s (offset(T) from `mpu_tcc`), %s "
+           "(`calib_const.py`), %s (offset(T) rebuilt from the model), %s (`sensors.restore`) | %s |" % (
+               _kb(ram.boot_registers_frozen), _kb(ram.boot_tcc_frozen), _kb(ram.boot_const_frozen),
+               _kb(ram.boot_model_frozen), _kb(ram.boot_sensors_frozen),
+               "within 24 KB" if all(getattr(ram, "boot_%s_frozen" % b).row.get("ok") for b in
+                                     ("registers", "tcc", "const", "model", "sensors")) else "**not all within 24 KB**")]
+    return "Figures of `python -m tools bench ram`, %s (rendered from `docs/bench.json`):\n\n%s" % (
+        ram.date, "\n".join(out))
+
+
+_STEP_NOTES = ("`sensors` module (the driver's own path skips it)", "store reader", "driver, `bus`, parts table",
+               "fixed-point core", "`BiasModel` with its exact fit, `compensate(model)`'s set-up, `compiled()`",
+               "records, driver buffers", "the fitted model", "two 3-axis Compensators and their native kernels")
+
+
+def ram_steps(r):
+    rows = r["ram"]._entry["rows"]
+    out = ["| step | heap kept | of which |", "|---|---:|---|"]
+    prev = 0
+    k = 1
+    while "steps_model_%d" % k in rows:
+        row = rows["steps_model_%d" % k]
+        name = row["name"].split("cumulative: ", 1)[1]
+        note = _STEP_NOTES[k - 1] if k - 1 < len(_STEP_NOTES) else ""
+        out.append("| %s | %.1f KB | %s: %.1f KB |" % (_code_words(name), row["value"] / 1024.0, note,
+                                                      (row["value"] - prev) / 1024.0))
+        prev = row["value"]
+        k += 1
+    return "\n".join(out)
+
+
+def _code_words(step):
+    # the bench's step label with its code in backticks: "+ `import tempcomp.store`", "`restore(store)`"
+    return re.sub(r"(import [\w.]+|[\w.]+\([\w, ]*\)|BiasModel\.from_ints|read_compensated)", r"`\1`", step)
+
+
+def ram_modules(r):
+    rows = r["ram"]._entry["rows"]
+    out = ["| module | `.py` | `.mpy` |", "|---|---:|---:|"]
+    for k in rows:
+        if k.startswith("py_tempcomp"):
+            m = k[3:]
+            py, mp = rows[k]["value"], rows["mpy_" + m]["value"]
+            out.append("| `%s` | %s | %s |" % (m, "MemoryError" if py is None else "%.1f KB" % (py / 1024.0),
+                                               "MemoryError" if mp is None else "%.1f KB" % (mp / 1024.0)))
+    return "One run of `python -m tools bench ram`, %s (`tools.bench.ram.measure_import`):\n\n%s" % (
+        r["ram"].date, "\n".join(out))
+
+
+def gapcheck(r):
+    g = r["gapcheck"]
+
+    def f(key):
+        return "%s/%s" % (getattr(g, "full_" + key), getattr(g, "full_%s_n" % key))
+
+    reduced = all(getattr(g, "reduced_" + k).row.get("ok") for k in ("singles", "pairs", "nones", "where", "shrink"))
+    return (
+        "Blind benchmark (`make gap-check`, %s cases, seed 1; `python -m tools bench gapcheck`, %s): every single "
+        "effect named first (%s), both effects of every pair (%s), nothing claimed on the no-effect cases (%s), "
+        "\"where\" by excess over the floor right in %s, final withheld RMS within 25 %% of the true noise in %s "
+        "(worst %.2fx); the reduced set in the tests (%s cases, seed 7) %s." % (
+            g.full_where_n, g.date, f("singles"), f("pairs"), f("nones"), f("where"), f("shrink"),
+            g.full_worst_ratio.value, g.reduced_where_n,
+            "meets every target too" if reduced else "misses a target (see `python -m tools bench gapcheck`)"))
+
+
+BLOCKS.update({
+    ("README.md", "gapcheck"): gapcheck,
+    ("README.md", "measured-intro"): measured_intro,
+    ("README.md", "measured"): measured,
+    ("README.md", "instructions-intro"): instructions_intro,
+    ("README.md", "instructions"): instructions,
+    ("README.md", "instructions-after"): instructions_after,
+    ("README.md", "instructions-heap"): instructions_heap,
+    ("README.md", "augment-shrink"): augment_shrink,
+    ("README.md", "augment-cost"): augment_cost,
+    ("docs/augment.md", "augment-shrink-words"): augment_shrink_words,
+    ("docs/augment.md", "augment-cost"): augment_cost,
+    ("docs/simgap.md", "simgap-speed"): simgap_speed,
+    ("docs/ram.md", "ram-targets"): ram_targets,
+    ("docs/ram.md", "ram-steps"): ram_steps,
+    ("docs/ram.md", "ram-modules"): ram_modules,
+})
