@@ -58,9 +58,10 @@ gap: setup
 	@mkdir -p out
 	$(PY) -m tools gap $(LOG) $(if $(WITHHELD),--withheld $(WITHHELD)) --json out/gap.json --plot out/gap.png $(if $(EXPORT),--export $(EXPORT))
 
-# The blind benchmark of the gap diagnosis: 27 generated cases with hidden labels
+# The blind benchmark of the gap diagnosis: 27 generated cases with hidden labels;
+# SET=wander the random-walk set of tools/gapbench/wander.py (20 seeds), SET=both the two in turn
 gap-check: setup
-	$(PY) -m tools gap-check
+	$(PY) -m tools gap-check $(if $(SET),--set $(SET))
 
 mpy: setup
 	$(PY) -m tools mpy build/mpy
@@ -76,14 +77,18 @@ dist: setup
 # The virtual board: the MicroPython VM serving its REPL on a pty (build/vboard/tty, for
 # `mpremote connect build/vboard/tty repl`) and on 127.0.0.1:$(BOARD_TCP) (exec, cp, mount), flash kept
 # in build/vboard/flash/. `make board` runs it in the foreground; board-start/board-stop in the background.
+# BOARD=pico: the virtual Raspberry Pi Pico instead (the real RP2040 firmware on an emulated RP2040,
+# tools/pico), on the same front end; its flash is the littlefs image build/pico/flash.img.
+BOARD_ARG = $(if $(filter pico,$(BOARD)),--board pico)
+
 board: setup
-	$(VBOARD) --port $(BOARD_TCP)
+	$(VBOARD) --port $(BOARD_TCP) $(BOARD_ARG)
 
 board-start: setup
-	$(VBOARD) --port $(BOARD_TCP) --detach
+	$(VBOARD) --port $(BOARD_TCP) --detach $(BOARD_ARG)
 
 board-stop:
-	node tools/vboard/server.mjs --stop
+	node tools/vboard/server.mjs --stop $(BOARD_ARG)
 
 clean:
 	rm -rf build dist $(VENV) $(NODE_MODULES)

@@ -62,8 +62,10 @@ def main(argv=None):
     if module is None:  # the virtual board is a node program
         server = os.path.join(REPO, "tools", "vboard", "server.mjs")
         # no code from strings in any thread: a second wall behind the VM's sealed js bridge
-        # (tools/vboard/vm_worker.mjs), which holds without it (host_tests/board/test_vboard_security.py)
-        os.execvp("node", ["node", "--disallow-code-generation-from-strings", server] + rest)
+        # (tools/vboard/vm_worker.mjs), which holds without it (host_tests/board/test_vboard_security.py);
+        # the server thread's heap bounded (the VM's thread and memory are bounded by the server)
+        os.execvp("node", ["node", "--disallow-code-generation-from-strings", "--max-old-space-size=256",
+                           server] + rest)
     if rest[:1] in (["-h"], ["--help"]):
         print("example: %s\n" % example)
     try:

@@ -39,7 +39,9 @@ class VirtualBoard:
         self.repl_command = None  # the banner's "REPL: mpremote connect <tty> repl"
 
     def start(self):
-        cmd = [NODE, str(SERVER), "--port", str(self.port_arg), "--flash", str(self.flash),
+        # the server thread's heap bounded as `python -m tools board` bounds it (no
+        # --disallow-code-generation-from-strings: the sealed bridge must hold without it)
+        cmd = [NODE, "--max-old-space-size=256", str(SERVER), "--port", str(self.port_arg), "--flash", str(self.flash),
                "--pidfile", str(self.flash.parent / f"board-{id(self)}.pid")]
         if self.devices:
             cmd += ["--devices", str(self.devices)]
@@ -79,8 +81,8 @@ class VirtualBoard:
         while True:
             r = subprocess.run([sys.executable, "-m", "mpremote", "connect", self.url, *args],
                                capture_output=True, text=True, timeout=timeout)
-            # one client at a time: the previous command's close may not have been read yet
-            # (nothing was sent when mpremote could not connect, so running it again is safe)
+            # not listening (yet): nothing was sent when mpremote could not connect, so running
+            # it again is safe (up to CEILING)
             if "failed to access" not in r.stderr or time.monotonic() > deadline:
                 break
             time.sleep(0.2)
@@ -111,17 +113,9 @@ class Line:
     """The serial line seen from a terminal: a plain socket."""
 
     def __init__(self, port):
-        deadline = time.monotonic() + CEILING
-        while True:
-            try:
-                # recv waits up to CEILING too: a reply (or the board closing the line) is an event
-                self.sock = socket.create_connection(("127.0.0.1", port), timeout=CEILING)
-                break
-            except ConnectionRefusedError:
-                # one client at a time: the previous one's close may not have been read yet
-                if time.monotonic() > deadline:
-                    raise
-                time.sleep(0.2)
+        # the board listens for its whole life; a previous client on its way out is waited for.
+        # recv waits up to CEILING too: a reply (or the board closing the line) is an event
+        self.sock = socket.create_connection(("127.0.0.1", port), timeout=CEILING)
         self.buf = b""
 
     def send(self, data):
@@ -171,3 +165,17 @@ class Line:
 
     def close(self):
         self.sock.close()
+
+
+def proc_start(pid):
+    """A process's start time (clock ticks since boot), as the board's pid file records it."""
+    stat = open("/proc/%d/stat" % pid).read()
+    return stat[stat.rindex(")") + 2:].split()[19]
+
+
+def rss_kb(pid):
+    """A process's resident memory from /proc, in KiB."""
+    for line in open("/proc/%d/status" % pid):
+        if line.startswith("VmRSS:"):
+            return int(line.split()[1])
+    raise AssertionError("no VmRSS")

@@ -962,7 +962,11 @@ def _kernels():
     if not _ntried:
         _ntried = True
         try:
-            from tempcomp import native
+            try:
+                from tempcomp import native
+            except ValueError:
+                # an armv7m .mpy on a Cortex-M0+ (RP2040): the armv6m build beside it (make dist)
+                from tempcomp import native_m0 as native  # pyright: ignore[reportAttributeAccessIssue]
 
             _nmod = native
         except (ImportError, SyntaxError, ValueError, NotImplementedError):

@@ -39,14 +39,21 @@ class BoardError(RuntimeError):
 class VirtualBoard:
     """tools/vboard/server.mjs as a child process with its own flash directory under ``home``."""
 
-    def __init__(self, home, port=0, env=None, fresh=True):
+    def __init__(self, home, port=0, env=None, fresh=True, board="virtual"):
+        # board="pico": the virtual Pico (tools/pico), whose flash is one littlefs image file
         self.home = os.path.abspath(home)
-        self.flash = os.path.join(self.home, "flash")
+        self.board = board
+        self.flash = os.path.join(self.home, "flash.img" if board == "pico" else "flash")
         self.port_arg = int(port)
         self.env = dict(env or {})
         self.proc = None
         self.port = None
         self.lines = []
+        os.makedirs(self.home, exist_ok=True)
+        if board == "pico":
+            if fresh and os.path.exists(self.flash):
+                os.remove(self.flash)
+            return
         if fresh and os.path.isdir(self.flash):
             shutil.rmtree(self.flash)
         os.makedirs(self.flash, exist_ok=True)
@@ -61,8 +68,9 @@ class VirtualBoard:
         e.update(self.env)
         e.update(env or {})
         port = self.port if self.port is not None else self.port_arg
-        cmd = [NODE, "--disallow-code-generation-from-strings", SERVER, "--port", str(port), "--flash", self.flash,
-               "--pidfile", os.path.join(self.home, "board.pid")]
+        cmd = [NODE, "--disallow-code-generation-from-strings", "--max-old-space-size=256", SERVER,
+               "--port", str(port), "--flash", self.flash,
+               "--pidfile", os.path.join(self.home, "board.pid"), "--board", self.board]
         self.lines = []
         self.proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
                                      env=e, start_new_session=True)
@@ -119,8 +127,8 @@ class Remote:
         cmd = [sys.executable, "-m", "mpremote", "connect", self.port] + list(args)
         for attempt in range(5):
             out, err, code = self._mpremote(cmd, timeout)
-            # the virtual board takes one client at a time and refuses a connection until it has
-            # read the previous command's close (nothing was sent: running it again is safe)
+            # the board was not listening yet (or no longer): nothing was sent, running it again is
+            # safe (a second client while one is attached is accepted, told why and closed)
             if not (code == 1 and "failed to access" in err and self.port.startswith("socket://")):
                 break
             time.sleep(0.2 * (attempt + 1))

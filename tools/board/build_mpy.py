@@ -30,16 +30,22 @@ def mpy_cross():
     return exe if os.path.exists(exe) else "mpy-cross"
 
 
-# Modules holding @micropython.viper / asm_thumb code need a native architecture: armv7m (Cortex-M3,
-# M4, M7). On another architecture the .mpy refuses to load, fixedpoint catches that and runs its
-# pure-Python path; copying the .py instead lets the board compile the kernels for itself.
+# Modules holding @micropython.viper / asm_thumb code need a native architecture. An .mpy for
+# armv6m (Cortex-M0/M0+: the Pico's RP2040) loads on every ARM Cortex-M port; one for armv7m (M3,
+# M4, M7) uses Thumb-2 and is refused by an M0+. So the viper module is built twice, native.mpy
+# (armv7m) and native_m0.mpy (armv6m), and fixedpoint imports the second where the first is
+# refused; the asm_thumb module is Thumb-1 only and is built for armv6m. Elsewhere (no ARM) both
+# refuse to load and fixedpoint runs its pure-Python path; copying the .py instead lets the board
+# compile the kernels for itself.
 NATIVE_ARCH = "armv7m"
+M0_ARCH = "armv6m"
+THUMB1_ONLY = ("tempcomp/thumb.py",)  # asm_thumb with Thumb-1 instructions only
 
 
 def _is_native(src):
+    # a decorator line, not a mention in a docstring
     with open(src) as f:
-        text = f.read()
-    return "@micropython.viper" in text or "@micropython.asm_thumb" in text
+        return any(line.lstrip().startswith(("@micropython.viper", "@micropython.asm_thumb")) for line in f)
 
 
 def build(outdir):
@@ -49,11 +55,18 @@ def build(outdir):
         src = os.path.join(LIB, rel)
         dst = os.path.join(outdir, rel[:-3] + ".mpy")
         os.makedirs(os.path.dirname(dst), exist_ok=True)
-        arch = ["-march=" + NATIVE_ARCH] if _is_native(src) else []
-        proc = subprocess.run([mpy_cross(), "-O3", *arch, "-o", dst, "-s", rel, src], capture_output=True, text=True)
-        if proc.returncode != 0:
-            raise SystemExit("mpy-cross failed on %s:\n%s" % (rel, proc.stderr or proc.stdout))
-        rows.append((rel, os.path.getsize(src), os.path.getsize(dst)))
+        builds = [(dst, None)]
+        if _is_native(src):
+            if rel in THUMB1_ONLY:
+                builds = [(dst, M0_ARCH)]
+            else:
+                builds = [(dst, NATIVE_ARCH), (dst[:-4] + "_m0.mpy", M0_ARCH)]
+        for out, arch in builds:
+            march = ["-march=" + arch] if arch else []
+            proc = subprocess.run([mpy_cross(), "-O3", *march, "-o", out, "-s", rel, src], capture_output=True, text=True)
+            if proc.returncode != 0:
+                raise SystemExit("mpy-cross failed on %s:\n%s" % (rel, proc.stderr or proc.stdout))
+            rows.append((os.path.relpath(out, outdir)[:-4] + ".py", os.path.getsize(src), os.path.getsize(out)))
     return rows
 
 

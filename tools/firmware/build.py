@@ -8,17 +8,24 @@ Builds what is missing from the output directory, and nothing else:
     an500/firmware.elf   MicroPython 1.27.0, ports/qemu BOARD=MPS2_AN500 (Cortex-M7)
     mpy-cross            MicroPython 1.27.0 mpy-cross
     circuitpython        CircuitPython 10.2.1, ports/unix VARIANT=coverage
+    rp2/firmware.bin     MicroPython 1.27.0, ports/rp2 BOARD=RPI_PICO (RP2040, Cortex-M0+), the image the
+                         emulated Pico (tools/pico) boots; firmware.elf beside it (symbols)
 
 Sources: ``--micropython-src`` / ``--circuitpython-src`` (or MICROPY_SRC / CIRCUITPY_SRC), checkouts of
-those tags; otherwise the archives in ../shared/vendor are unpacked under <out>/src. The steps are the
-ones ../shared/vendor/README.md checked: nothing from micropython-lib is frozen (an empty manifest, and
-MPY_LIB_DIR pointed at an empty directory instead of touching the source tree), and CircuitPython's
-version header wants a git tag, so an unpacked archive becomes a one-commit repository tagged 10.2.1.
+those tags (for rp2 with its submodules: lib/pico-sdk, lib/tinyusb, lib/mbedtls, lib/micropython-lib);
+otherwise the archives in ../shared/vendor are unpacked under <out>/src (the rp2 one under
+<out>/src/rp2, its own tree). The steps are the ones ../shared/vendor/README.md checked: nothing from
+micropython-lib is frozen into the QEMU boards (an empty manifest, and MPY_LIB_DIR pointed at an empty
+directory instead of touching the source tree); the Pico keeps its board's own manifest (its
+``_boot.py`` mounts littlefs), built with ``CMAKE_ARGS=-DPICO_NO_PICOTOOL=1`` in the environment so
+pico-sdk does not try to download picotool; CircuitPython's version header wants a git tag, so an
+unpacked archive becomes a one-commit repository tagged 10.2.1.
 The Debian packages the firmware needs are installed with apt-get when running as root; otherwise the
 one command to run is printed and the rest is built.
 """
 import argparse
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -35,7 +42,12 @@ DEBIAN = {
     "gcc-arm-none-eabi": lambda: shutil.which("arm-none-eabi-gcc") is not None,
     "libnewlib-arm-none-eabi": lambda: os.path.isdir("/usr/lib/arm-none-eabi/newlib"),
     "qemu-system-arm": lambda: shutil.which("qemu-system-arm") is not None,
+    "cmake": lambda: shutil.which("cmake") is not None,
+    # the rp2 port links pico-sdk's C++ runtime bits: without it the link fails on <cstdlib>
+    "libstdc++-arm-none-eabi-newlib": lambda: os.path.exists("/usr/lib/arm-none-eabi/newlib/libstdc++.a")
+    and os.path.isdir("/usr/include/newlib/c++"),
 }
+RP2_DEBIAN = ["cmake", "gcc-arm-none-eabi", "libnewlib-arm-none-eabi", "libstdc++-arm-none-eabi-newlib"]
 
 
 def log(msg):
@@ -67,7 +79,7 @@ def debian_packages(need):
 def unpack(archive, dest_parent):
     """Unpack a vendor archive once; return its top directory."""
     path = os.path.join(VENDOR, archive)
-    top = os.path.join(dest_parent, archive.split("-qemu")[0].split("-unix")[0])
+    top = os.path.join(dest_parent, re.sub(r"-(qemu|unix|rp2)\.tar\.xz$", "", archive))
     if os.path.isdir(top) and os.path.exists(os.path.join(top, ".unpacked")):
         return top
     if not os.path.exists(path):
@@ -147,11 +159,41 @@ def build_circuitpython(out, src):
         raise SystemExit("fw-build: %s is not CircuitPython: %r" % (exe, ver))
 
 
+def build_rp2(out, src):
+    """RPI_PICO firmware (ports/rp2) into <out>/rp2/firmware.{bin,elf}."""
+    if src is None:
+        src = unpack("micropython-%s-rp2.tar.xz" % MICROPY_TAG, os.path.join(out, "src", "rp2"))
+    elif not os.path.exists(os.path.join(src, "lib", "pico-sdk", "README.md")):
+        raise SystemExit("fw-build: %s has no lib/pico-sdk: run `make -C ports/rp2 submodules` there first" % src)
+    obj = os.path.join(out, "obj", "rp2")
+    # CMAKE_ARGS in the environment: on make's command line it would replace the Makefile's own
+    env = dict(os.environ, CMAKE_ARGS="-DPICO_NO_PICOTOOL=1")
+    sh(["make", "-j", jobs(), "-C", os.path.join(src, "mpy-cross")])
+    sh(["make", "-j", jobs(), "-C", os.path.join(src, "ports", "rp2"), "BOARD=RPI_PICO", "BUILD=" + obj], env=env)
+    os.makedirs(os.path.join(out, "rp2"), exist_ok=True)
+    shutil.copy2(os.path.join(obj, "firmware.elf"), os.path.join(out, "rp2", "firmware.elf"))
+    # the .bin last: it is what says the build is there
+    shutil.copy2(os.path.join(obj, "firmware.bin"), os.path.join(out, "rp2", "firmware.bin"))
+
+
+def rp2_bootrom(out):
+    """The RP2040's B1 mask ROM for rp2040js (rp2040-bootrom-b1.mjs in ../shared/vendor) beside the
+    Pico firmware: the virtual Pico boots through it (tools/pico/boot.mjs)."""
+    dst = os.path.join(out, "rp2", "bootrom.mjs")
+    src = os.path.join(VENDOR, "rp2040-bootrom-b1.mjs")
+    if os.path.exists(os.path.join(out, "rp2", "firmware.bin")) and not os.path.exists(dst):
+        if os.path.exists(src):
+            shutil.copy2(src, dst)
+        else:
+            log("%s not found: the virtual Pico cannot boot without the RP2040 bootrom" % src)
+
+
 def artefacts(out):
     return {"mpy-cross": os.path.join(out, "mpy-cross"),
             "an385": os.path.join(out, "an385", "firmware.elf"),
             "an500": os.path.join(out, "an500", "firmware.elf"),
-            "circuitpython": os.path.join(out, "circuitpython")}
+            "circuitpython": os.path.join(out, "circuitpython"),
+            "rp2": os.path.join(out, "rp2", "firmware.bin")}
 
 
 def main(argv=None):
@@ -167,9 +209,14 @@ def main(argv=None):
         if src and not os.path.isdir(os.path.join(src, "py")):
             ap.error("%s is not a MicroPython/CircuitPython source tree (no py/ inside)" % src)
     want = [k for k, p in artefacts(out).items() if not os.path.exists(p)]
-    still = debian_packages(["qemu-system-arm"] + (["gcc-arm-none-eabi", "libnewlib-arm-none-eabi"]
-                                                   if any(b in want for b in BOARDS) else []))
+    need = ["qemu-system-arm"]
+    if any(b in want for b in BOARDS):
+        need += ["gcc-arm-none-eabi", "libnewlib-arm-none-eabi"]
+    if "rp2" in want:
+        need += [p for p in RP2_DEBIAN if p not in need]
+    still = debian_packages(need)
     if not want:
+        rp2_bootrom(out)
         log("%s: all present (%s)" % (a.out, ", ".join(artefacts(out))))
         return 0
     os.makedirs(out, exist_ok=True)
@@ -177,12 +224,19 @@ def main(argv=None):
         skip = [b for b in BOARDS if b in want]
         log("not building %s without the ARM toolchain; their tests will skip" % ", ".join(skip))
         want = [w for w in want if w not in skip]
+    if "rp2" in want and any(p in still for p in RP2_DEBIAN):
+        log("not building rp2 (the Pico firmware) without %s; its tests will skip"
+            % ", ".join(p for p in RP2_DEBIAN if p in still))
+        want.remove("rp2")
     mp = os.path.abspath(a.micropython_src) if a.micropython_src else None
     cp = os.path.abspath(a.circuitpython_src) if a.circuitpython_src else None
-    if [w for w in want if w != "circuitpython"]:
+    if [w for w in want if w not in ("circuitpython", "rp2")]:
         build_micropython(out, mp, want)
+    if "rp2" in want:
+        build_rp2(out, mp)
     if "circuitpython" in want:
         build_circuitpython(out, cp)
+    rp2_bootrom(out)
     left = [k for k, p in artefacts(out).items() if not os.path.exists(p)]
     log("built %s%s" % (", ".join(w for w in want if w not in left) or "nothing",
                         "; still missing: " + ", ".join(left) if left else ""))

@@ -2,7 +2,8 @@
 from its CSV files only (labels stay in labels.json, unread by the tool), then compare.
 
 `python -m tools.gapbench.check [--small] [--seed N] [--keep DIR]` prints the scores and exits 1 when
-a target is missed:
+a target is missed (`--set wander` / `--set both`: the wander set of tools/gapbench/wander.py,
+scored by tools/gapbench/wandercheck.py, which says its own targets):
   - every single-effect case names its effect first;
   - both effects of every pair are in the verdict;
   - no effect is claimed on the no-effect cases;
@@ -11,10 +12,14 @@ a target is missed:
     positive excess, a no-effect case lists no cell.
 """
 import argparse
+import json
+import os
 import sys
 import tempfile
+import time
 
 from tools.gapbench import gen as gapgen
+from tools.gapbench import wander, wandercheck
 from tools.simgap.diagnose import diagnose
 from tools.simgap.logio import read_log
 
@@ -77,14 +82,58 @@ def passed(rows):
 
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(prog="python -m tools.gapbench.check")
-    ap.add_argument("--small", action="store_true")
-    ap.add_argument("--seed", type=int, default=1)
+    ap = argparse.ArgumentParser(
+        prog="python -m tools.gapbench.check",
+        description="Blind benchmark of the gap diagnosis. --set gen (default): the 27 cases of "
+                    "tools/gapbench/gen.py at one --seed. --set wander: the random-walk situations of "
+                    "tools/gapbench/wander.py over --seeds. --set both: the two in turn.")
+    ap.add_argument("--set", dest="which", choices=("gen", "wander", "both"), default="gen")
+    ap.add_argument("--small", action="store_true", help="gen: the reduced case set")
+    ap.add_argument("--seed", type=int, default=1, help="gen: the seed (default 1)")
     ap.add_argument("--keep", help="write the cases here instead of a temporary directory")
+    ap.add_argument("--seeds", default="1-20", help="wander: seeds, e.g. 1-20 or 3,7 (default 1-20)")
+    ap.add_argument("--logs", type=int, default=3, help="wander: logs per situation per seed (default 3)")
+    ap.add_argument("--situations", help="wander: comma-separated subset of %s" % ",".join(wander.SITUATIONS))
+    ap.add_argument("--jobs", type=int, default=min(2, os.cpu_count() or 1),
+                    help="wander: diagnoses run in parallel (default min(2, cores))")
+    ap.add_argument("--json", help="wander: write every log's scores here")
+    ap.add_argument("-v", "--verbose", action="store_true", help="wander: one line per log as it finishes")
     a = ap.parse_args(argv)
-    rows = run(a.seed, not a.small, a.keep)
-    print(summary(rows))
-    return 0 if passed(rows) else 1
+    ok = True
+    if a.which in ("gen", "both"):
+        rows = run(a.seed, not a.small, a.keep and os.path.join(a.keep, "gen"))
+        print(summary(rows))
+        ok &= passed(rows)
+    if a.which in ("wander", "both"):
+        try:
+            seeds = wandercheck.parse_seeds(a.seeds)
+            sits = wander.SITUATIONS if not a.situations else tuple(a.situations.split(","))
+            bad = [s for s in sits if s not in wander.SITUATIONS]
+            if bad or a.logs < 1 or a.jobs < 1:
+                raise ValueError("unknown situation(s) %s (one of %s)" % (",".join(bad), ",".join(wander.SITUATIONS))
+                                 if bad else "--logs and --jobs must be >= 1")
+        except ValueError as e:
+            ap.error(str(e))
+        if a.which == "both":
+            print()
+        t0 = time.perf_counter()
+
+        def progress(row, k, n):
+            if a.verbose:
+                print("[%d/%d] %s" % (k, n, wandercheck.log_line(row)), flush=True)
+
+        wrows = wandercheck.run(seeds, a.logs, sits, a.jobs, a.keep and os.path.join(a.keep, "wander"), progress)
+        ok &= wandercheck.report(wrows)
+        wall = time.perf_counter() - t0
+        diag = sum(r["diagnose_s"] for r in wrows)
+        print("%d diagnoses in %.0f s wall (%d job(s)); per diagnosis %.1f s mean, %.1f s worst; "
+              "generating %.2f s mean" % (len(wrows), wall, a.jobs, diag / len(wrows),
+                                          max(r["diagnose_s"] for r in wrows),
+                                          sum(r["generate_s"] for r in wrows) / len(wrows)))
+        if a.json:
+            with open(a.json, "w") as f:
+                json.dump(wrows, f, indent=1)
+    return 0 if ok else 1
 
 
 if __name__ == "__main__":

@@ -11,7 +11,10 @@ export const CTL = {
   BUSY: 4,        // worker is inside the VM (set by the worker)
   INJECTED: 5,    // bumped by the server each time it injects a KeyboardInterrupt
   OUT_NOTIFY: 6,  // 1 while an "output ready" message is in flight
-  SIZE: 8,
+  NAP: 7,         // never written: a word to Atomics.wait on for a plain sleep
+  FLUSH_TO: 8,    // Ctrl-C: the reader discards input up to this write index ...
+  FLUSH_REQ: 9,   // ... when this is 1 (set by the writer after FLUSH_TO, cleared by the reader)
+  SIZE: 10,
 };
 
 export const IN_SIZE = 1 << 16;
@@ -71,5 +74,50 @@ export class Ring {
     const c = this.buf[r & (this.size - 1)];
     Atomics.store(this.ctl, this.r, (r + 1) | 0);
     return c;
+  }
+}
+
+// Bytes waiting for room in a ring, at most `cap` of them: beyond, new bytes are dropped and
+// counted, as a board's UART drops what its buffer cannot hold, instead of growing the host's
+// memory.  Chunks are kept as they came (no copying per flush).
+export class ByteQueue {
+  constructor(cap) {
+    this.cap = cap;
+    this.clear();
+    this.dropped = 0;
+  }
+
+  clear() {
+    this.chunks = [];
+    this.head = 0; // bytes of chunks[0] already moved
+    this.length = 0;
+  }
+
+  push(buf) {
+    const room = this.cap - this.length;
+    if (buf.length > room) {
+      this.dropped += buf.length - room;
+      buf = buf.subarray(0, room);
+    }
+    if (buf.length) {
+      this.chunks.push(buf);
+      this.length += buf.length;
+    }
+  }
+
+  // Moves as much as fits into the ring; returns the number of bytes moved.
+  drainInto(ring) {
+    let moved = 0;
+    while (this.chunks.length) {
+      const c = this.chunks[0];
+      const n = ring.write(c, this.head);
+      moved += n;
+      this.head += n;
+      this.length -= n;
+      if (this.head < c.length) break;
+      this.chunks.shift();
+      this.head = 0;
+    }
+    return moved;
   }
 }

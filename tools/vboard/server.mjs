@@ -7,13 +7,14 @@
 //   node tools/vboard/server.mjs [--port N] [--no-pty] [--flash DIR] [--pidfile F] ...
 //   node tools/vboard/server.mjs --stop [--pidfile F]
 //
-// Who can reach it (docs/demo.md, "What the virtual board exposes"): the pty is
-// the starting user's (mode 0600); the TCP port listens on 127.0.0.1 only, takes
-// one client at a time (--takeover lets a new one take the line over) and
-// refuses a client whose first byte is not what a terminal or mpremote sends
-// (an HTTP request from a web page, TLS, ...).  Code on the board reaches no
-// host JavaScript (vm_worker.mjs, "the sealed bridge") and writes only its
-// flash directory, up to --flash-size bytes.
+// Who can reach it (docs/security.md): the pty is the starting user's (mode
+// 0600); the TCP port listens on 127.0.0.1 only, for the board's whole life,
+// and gives the line to one client at a time (serial_tcp.mjs).  Code on the
+// board reaches no host JavaScript (vm_worker.mjs, "the sealed bridge"), writes
+// only its flash directory, up to --flash-size bytes and never through a link
+// (vm_files.mjs, hostdir.mjs), and uses at most --ram of memory and --ram-disk
+// of in-memory files.  Input is bounded, Ctrl-C always interrupts (a VM that
+// does not take it is reset), and --stop kills only this board (boardproc.mjs).
 //
 // Environment: BOARD_TCP (port, default 2323), MPY_WASM_DIR (the npm package
 // @micropython/micropython-webassembly-pyscript), VBOARD_FLASH (flash dir),
@@ -24,14 +25,15 @@
 // VBOARD_PROFILE (temperature profile "s:degC,s:degC,...", replacing the scenario).
 
 import { Worker } from "node:worker_threads";
-import net from "node:net";
 import fs from "node:fs";
 import path from "node:path";
-import { execFileSync, spawn } from "node:child_process";
+import { spawn } from "node:child_process"; // the pty bridge
 import { fileURLToPath } from "node:url";
 import v8 from "node:v8";
 import vm from "node:vm";
-import { CTL, Ring, makeShared } from "./rings.mjs";
+import { ByteQueue, CTL, Ring, makeShared } from "./rings.mjs";
+import { removeOwnPidfile, runDetached, stopByPidfile, writePidfile } from "./boardproc.mjs";
+import { serveSerialLine } from "./serial_tcp.mjs";
 
 const HERE = path.dirname(fileURLToPath(import.meta.url));
 const REPO = path.resolve(HERE, "..", "..");
@@ -45,10 +47,18 @@ function usage(code) {
   --scenario S    the room: steady (25 degC, default), heating, cooling or cycle (25-45-25 degC)
   --flash DIR     host directory holding the board's flash (default: build/vboard/flash)
   --flash-size N  flash size in bytes (default 2097152: a full flash refuses writes, ENOSPC)
+  --ram-disk N    in-memory files besides the flash (/tmp), bytes (default 8388608; then ENOSPC)
+  --ram N         the VM's memory, bytes: its heap grows from --heap up to about this (default
+                  67108864; then MemoryError)
+  --idle-timeout S    a TCP client idle this long gives the line to a new one (default 30)
+  --first-byte-timeout S  a TCP connection that sends nothing this long is closed (default 10)
   --pidfile F     write the server's pid here (default: build/vboard/board.pid)
   --models DIR    extra directory of device-model .py files (repeatable)
   --devices FILE  board wiring module copied in as vboard_devices.py
   --heap BYTES    initial MicroPython heap (default 262144)
+  --board B       virtual (the MicroPython VM, default) or pico (the real RP2040 firmware on an
+                  emulated Raspberry Pi Pico, tools/pico; flash: build/pico/flash.img, pid file
+                  build/pico/board.pid)
   --detach        start in the background (log: the pid file's name with .log), return once listening
   --stop          stop the board whose pid is in --pidfile, then exit`);
   process.exit(code);
@@ -67,8 +77,13 @@ function parseArgs(argv) {
     takeover: false,
     scenario: env.VBOARD_SCENARIO || "steady",
     flashSize: 2 * 1024 * 1024,
-    flash: env.VBOARD_FLASH || path.join(REPO, "build", "vboard", "flash"),
-    pidfile: path.join(REPO, "build", "vboard", "board.pid"),
+    ramDisk: 8 * 1024 * 1024,
+    ram: 64 * 1024 * 1024,
+    idleTimeout: 30,
+    firstByteTimeout: 10,
+    board: env.VBOARD_BOARD || "virtual",
+    flash: env.VBOARD_FLASH || "",
+    pidfile: "",
     models: (env.VBOARD_MODELS || "").split(":").filter(Boolean),
     devices: env.VBOARD_DEVICES || path.join(HERE, "vm", "vboard_devices.py"),
     heap: 262144,
@@ -90,6 +105,10 @@ function parseArgs(argv) {
     else if (a === "--takeover") o.takeover = true;
     else if (a === "--scenario") o.scenario = val();
     else if (a === "--flash-size") o.flashSize = Number(val());
+    else if (a === "--ram-disk") o.ramDisk = Number(val());
+    else if (a === "--ram") o.ram = Number(val());
+    else if (a === "--idle-timeout") o.idleTimeout = Number(val());
+    else if (a === "--first-byte-timeout") o.firstByteTimeout = Number(val());
     else if (a === "--flash") o.flash = path.resolve(val());
     else if (a === "--pidfile") o.pidfile = path.resolve(val());
     else if (a === "--models") o.models.push(path.resolve(val()));
@@ -97,6 +116,7 @@ function parseArgs(argv) {
     else if (a === "--heap") o.heap = Number(val());
     else if (a === "--stop") o.stop = true;
     else if (a === "--detach") o.detach = true;
+    else if (a === "--board") o.board = val();
     else if (a === "-h" || a === "--help") usage(0);
     else {
       console.error(`unknown argument: ${a}`);
@@ -115,127 +135,47 @@ function parseArgs(argv) {
     console.error(`virtual board: --flash-size must be a whole number of bytes >= 65536, got ${o.flashSize}`);
     process.exit(2);
   }
+  if (!Number.isInteger(o.ramDisk) || o.ramDisk < 0) {
+    console.error(`virtual board: --ram-disk must be a whole number of bytes, got ${o.ramDisk}`);
+    process.exit(2);
+  }
+  if (!Number.isInteger(o.ram) || o.ram < 16 * 1024 * 1024 || o.ram > 2 ** 31) {
+    console.error(`virtual board: --ram must be a whole number of bytes from 16 MiB to 2 GiB, got ${o.ram}`);
+    process.exit(2);
+  }
+  for (const [k, flag] of [["idleTimeout", "--idle-timeout"], ["firstByteTimeout", "--first-byte-timeout"]]) {
+    if (!(o[k] > 0 && o[k] <= 86400)) {
+      console.error(`virtual board: ${flag} must be a number of seconds > 0, got ${o[k]}`);
+      process.exit(2);
+    }
+  }
+  if (!["virtual", "pico"].includes(o.board)) {
+    console.error(`virtual board: --board must be virtual or pico, got '${o.board}'`);
+    process.exit(2);
+  }
+  const home = path.join(REPO, "build", o.board === "pico" ? "pico" : "vboard");
+  if (!o.flash) o.flash = o.board === "pico" ? path.join(home, "flash.img") : path.join(home, "flash");
+  if (!o.pidfile) o.pidfile = path.join(home, "board.pid");
   if (!o.tty) o.tty = path.join(path.dirname(o.pidfile), "tty");
   return o;
 }
 
 const opts = parseArgs(process.argv.slice(2));
 
-// Who a pid is: its command line and its start time (clock ticks since boot on Linux),
-// so that a pid file left by a killed board cannot name a process that reused the pid.
-function procInfo(pid) {
-  try {
-    const stat = fs.readFileSync(`/proc/${pid}/stat`, "utf8");
-    const start = stat.slice(stat.lastIndexOf(")") + 2).split(" ")[19];
-    const cmd = fs.readFileSync(`/proc/${pid}/cmdline`, "utf8").split("\0").join(" ").trim();
-    return { start, cmd };
-  } catch {}
-  try {
-    // no /proc (macOS): ps gives both
-    const out = execFileSync("ps", ["-o", "lstart=,command=", "-p", String(pid)], { encoding: "utf8" }).trim();
-    if (!out) return null;
-    return { start: out.slice(0, 24).trim(), cmd: out.slice(24).trim() };
-  } catch {
-    return null;
-  }
-}
-
 const SERVER_SCRIPT = fileURLToPath(import.meta.url);
 
-function writePidfile() {
-  const me = procInfo(process.pid);
-  fs.writeFileSync(opts.pidfile, JSON.stringify({ pid: process.pid, start: me ? me.start : null,
-                                                  server: SERVER_SCRIPT }) + "\n");
+if (opts.stop) process.exit(stopByPidfile(opts.pidfile, SERVER_SCRIPT));
+
+// Background start for scripts (make board-start): the same command without --detach, its
+// output in a log next to the pid file; returns once the banner is out.
+if (opts.detach) {
+  process.exit(await runDetached({
+    script: SERVER_SCRIPT,
+    args: process.argv.slice(2).filter((a) => a !== "--detach"),
+    logPath: opts.pidfile.replace(/\.pid$/, "") + ".log",
+    stopHint: "make board-stop",
+  }));
 }
-
-function readPidfile() {
-  const text = fs.readFileSync(opts.pidfile, "utf8").trim();
-  try {
-    const o = JSON.parse(text);
-    if (o && Number.isInteger(o.pid) && o.pid > 0) return o;
-  } catch {}
-  return { pid: NaN };
-}
-
-function stopRunning() {
-  let rec;
-  const rel = path.relative(process.cwd(), opts.pidfile);
-  try {
-    rec = readPidfile();
-  } catch {
-    console.log(`virtual board: not running (no ${rel})`);
-    return 0;
-  }
-  const pid = rec.pid;
-  const who = Number.isInteger(pid) ? procInfo(pid) : null;
-  // Only a process that is this board: the same start time and a command line running
-  // this server.  Anything else (no process, a reused pid, an unreadable file) is left alone.
-  if (!who || !rec.start || who.start !== rec.start || !who.cmd.includes("server.mjs")) {
-    const why = !Number.isInteger(pid) ? "is not a virtual board's pid file"
-      : !who ? `names pid ${pid}, which is not running`
-      : `names pid ${pid}, which is now another process (${who.cmd.slice(0, 60) || "?"})`;
-    console.log(`virtual board: not running: ${rel} ${why}; nothing killed, stale pid file removed`);
-    fs.rmSync(opts.pidfile, { force: true });
-    return 0;
-  }
-  try {
-    process.kill(pid, "SIGTERM");
-  } catch {
-    console.log(`virtual board: pid ${pid} was not running; removing stale pid file`);
-    fs.rmSync(opts.pidfile, { force: true });
-    return 0;
-  }
-  const deadline = Date.now() + 5000;
-  while (Date.now() < deadline) {
-    try {
-      process.kill(pid, 0);
-      // exited, not yet reaped by its parent
-      if (fs.existsSync("/proc/self") && /^\d+ \(.*\) Z/.test(fs.readFileSync(`/proc/${pid}/stat`, "utf8"))) {
-        throw new Error("zombie");
-      }
-    } catch {
-      console.log(`virtual board: stopped (pid ${pid})`);
-      return 0;
-    }
-    Atomics.wait(new Int32Array(new SharedArrayBuffer(4)), 0, 0, 50);
-  }
-  console.error(`virtual board: pid ${pid} did not stop within 5 s`);
-  return 1;
-}
-
-if (opts.stop) process.exit(stopRunning());
-
-// Background start for scripts (make demo): the same command without
-// --detach, detached, its output in a log; return when it is listening.
-async function detach() {
-  const logPath = opts.pidfile.replace(/\.pid$/, "") + ".log";
-  fs.mkdirSync(path.dirname(logPath), { recursive: true });
-  const log = fs.openSync(logPath, "w");
-  const args = process.argv.slice(2).filter((a) => a !== "--detach");
-  const child = spawn(process.execPath, [fileURLToPath(import.meta.url), ...args], {
-    detached: true,
-    stdio: ["ignore", log, log],
-  });
-  child.unref();
-  const deadline = Date.now() + 15000;
-  while (Date.now() < deadline) {
-    const text = fs.readFileSync(logPath, "utf8");
-    if (/\n {2}stop: /.test(text)) {
-      process.stdout.write(text.replace(/ {2}stop: .*\n/,
-        `  stop: make board-stop (running in the background, pid ${child.pid}; log: ${logPath})\n`));
-      return 0;
-    }
-    if (child.exitCode !== null) {
-      process.stderr.write(text);
-      return child.exitCode || 1;
-    }
-    await new Promise((r) => setTimeout(r, 50));
-  }
-  console.error(`virtual board: did not start within 15 s; see ${logPath}`);
-  return 1;
-}
-
-if (opts.detach) process.exit(await detach());
 
 // ------------------------------------------------------------ the VM files
 
@@ -283,7 +223,7 @@ const outRing = new Ring(ctl, shared.outBuf, CTL.OUT_W, CTL.OUT_R);
 // ------------------------------------------------------------ the CPU
 
 let worker = null;
-let interrupt = null; // { memory, writes } for the running VM instance
+let interrupt = null; // { memory, writes, pending } for the running VM instance
 let compiled = null; // the VM's WebAssembly.Module, compiled by the first worker
 let powerOnMs = Date.now();
 let clockUs = 0; // the board's simulated time (vboard.py), kept across resets
@@ -294,21 +234,26 @@ function configPy() {
     `CLOCK_US = ${Math.max(0, Math.round(clockUs))}\n` +
     `TIME_SCALE = ${opts.timeScale}\n` +
     `SCENARIO = ${JSON.stringify(opts.scenario)}\n` +
-    `PROFILE = ${JSON.stringify(opts.profile)}\n`
+    `PROFILE = ${JSON.stringify(opts.profile)}\n` +
+    `FLASH_BYTES = ${opts.flashSize}\n`
   );
 }
+
+const WORKER_HEAP_MB = 128;
 
 function startWorker(soft = false, mode = "friendly") {
   interrupt = null;
   Atomics.store(ctl, CTL.BUSY, 0);
   // an "output ready" message of a terminated worker is never delivered: re-arm
   drainOutput();
-  const w = new Worker(path.join(HERE, "vm_worker.mjs"), {
+  const w = opts.board === "pico" ? picoWorker() : new Worker(path.join(HERE, "vm_worker.mjs"), {
     workerData: {
       shared,
       wasmDir,
       flashDir: opts.flash,
       flashLimit: opts.flashSize,
+      ramDisk: opts.ramDisk,
+      ramBytes: opts.ram,
       vmFiles,
       configPy: configPy(),
       heapsize: opts.heap,
@@ -317,12 +262,15 @@ function startWorker(soft = false, mode = "friendly") {
       soft,
       mode,
     },
+    // the VM thread's JavaScript heap (objects board code makes through jsffi): a board that
+    // exhausts it is reset, the host is not at risk
+    resourceLimits: { maxOldGenerationSizeMb: WORKER_HEAP_MB },
   });
   worker = w;
   w.on("message", (m) => {
     if (w !== worker) return;
     if (m.t === "out") drainOutput();
-    else if (m.t === "mem") interrupt = m.memory ? { memory: m.memory, writes: m.writes } : null;
+    else if (m.t === "mem") interrupt = m.memory ? { memory: m.memory, writes: m.writes, pending: m.pending } : null;
     else if (m.t === "compiled") compiled = m.module;
     else if (m.t === "log") console.error(`virtual board: ${m.msg}`);
     else if (m.t === "hard-reset") {
@@ -336,7 +284,23 @@ function startWorker(soft = false, mode = "friendly") {
   w.on("error", (e) => {
     if (w !== worker) return;
     console.error(`virtual board: VM thread failed: ${e.stack || e}`);
+    const why = e.code === "ERR_WORKER_OUT_OF_MEMORY" ? "out of memory" : "failed";
+    toLine(Buffer.from(`\r\n[virtual board: the VM ${why}; resetting]\r\n`));
     hardReset();
+  });
+}
+
+// The virtual Pico (tools/pico/pico_worker.mjs): the same serial rings; its firmware does
+// Ctrl-C, resets and the raw REPL itself.
+function picoWorker() {
+  fs.mkdirSync(path.dirname(opts.flash), { recursive: true });
+  return new Worker(path.join(REPO, "tools", "pico", "pico_worker.mjs"), {
+    workerData: {
+      shared,
+      image: opts.flash,
+      world: { scenario: opts.scenario, profile: opts.profile, timeScale: opts.timeScale },
+      realtime: process.env.PICO_REALTIME !== "0",
+    },
   });
 }
 
@@ -346,7 +310,9 @@ function startWorker(soft = false, mode = "friendly") {
 function hardReset() {
   const old = worker;
   worker = null;
+  disarmWatchdog();
   if (old) old.terminate().then(collectSoon);
+  inQueue.clear();
   Atomics.store(ctl, CTL.IN_R, Atomics.load(ctl, CTL.IN_W));
   powerOnMs = Date.now();
   startWorker();
@@ -371,6 +337,7 @@ function collectSoon() {
 function softReset(mode) {
   const old = worker;
   worker = null;
+  disarmWatchdog();
   if (old) old.terminate().then(collectSoon);
   startWorker(true, mode);
 }
@@ -381,8 +348,15 @@ function drainOutput() {
   Atomics.notify(ctl, CTL.OUT_R);
   if (data.length === 0) return;
   const buf = Buffer.from(data);
-  if (client) client.write(buf);
-  if (ptyBridge) ptyBridge.stdin.write(buf);
+  toLine(buf);
+}
+
+const PTY_OUTPUT_CAP = 4 << 20;
+
+function toLine(buf) {
+  if (line) line.write(buf);
+  // the bridge drops what nobody reads from the pty; this bounds what waits for the bridge
+  if (ptyBridge && ptyBridge.stdin.writableLength < PTY_OUTPUT_CAP) ptyBridge.stdin.write(buf);
 }
 
 // Ctrl-C while Python runs: do what a board's UART interrupt handler does,
@@ -393,122 +367,98 @@ function injectInterrupt() {
   for (const [addr, value] of interrupt.writes) words[addr / 4] = value;
   Atomics.add(ctl, CTL.INJECTED, 1);
   Atomics.notify(ctl, CTL.IN_W);
+  injectedAt = Date.now();
+  armWatchdog(CTRL_C_GRACE_MS);
   return true;
 }
 
-let backlog = [];
-let backlogTimer = null;
+// The VM takes a pending KeyboardInterrupt at its next bytecode branch or call; C code that
+// runs long without one (parsing or printing a 300,000-digit int: quadratic, minutes) does not
+// take it.  Ctrl-C must always stop the board: if the interrupt is still pending after
+// CTRL_C_GRACE_MS, the VM is reset, as its reset button would (RAM lost, flash kept).
+const CTRL_C_GRACE_MS = 3000;
+let watchdog = null;
+let injectedAt = 0; // the latest Ctrl-C raised in the VM
 
-function feedInput(data) {
-  for (const b of data) {
-    if (b === 3 && injectInterrupt()) continue;
-    backlog.push(b);
-  }
-  flushBacklog();
+function armWatchdog(ms) {
+  if (watchdog || !interrupt || interrupt.pending === null || interrupt.pending === undefined) return;
+  const w = worker, it = interrupt;
+  watchdog = setTimeout(() => {
+    watchdog = null;
+    if (w !== worker || it !== interrupt || !Atomics.load(ctl, CTL.BUSY)) return;
+    if (new Uint32Array(it.memory.buffer, it.pending, 1)[0] === 0) return; // taken
+    const age = Date.now() - injectedAt;
+    if (age < CTRL_C_GRACE_MS) return armWatchdog(CTRL_C_GRACE_MS - age); // a later Ctrl-C's turn
+    console.error(`virtual board: Ctrl-C not taken within ${CTRL_C_GRACE_MS / 1000} s (the VM is in one long C call); reset`);
+    toLine(Buffer.from(`\r\n[virtual board: Ctrl-C not taken within ${CTRL_C_GRACE_MS / 1000} s; resetting the board]\r\n`));
+    hardReset();
+  }, ms);
+  watchdog.unref();
 }
 
-function flushBacklog() {
-  if (backlog.length) {
-    const n = inRing.write(backlog);
-    backlog = backlog.slice(n);
+function disarmWatchdog() {
+  if (watchdog) clearTimeout(watchdog);
+  watchdog = null;
+}
+
+// Input waiting for the VM: the ring (64 KiB) and at most INPUT_CAP more; beyond, a client
+// that sends faster than the board reads loses bytes, as on a board's UART (mpremote never
+// does: its raw-paste mode waits for the board's flow-control window).
+const INPUT_CAP = 1 << 20;
+const inQueue = new ByteQueue(INPUT_CAP);
+let inTimer = null;
+let dropReport = null;
+
+function feedInput(data) {
+  let from = 0;
+  for (;;) {
+    const i = data.indexOf(3, from);
+    if (i < 0) break;
+    // what came before a Ctrl-C is discarded with the rest of the unread input
+    ctrlC();
+    from = i + 1;
+  }
+  if (from < data.length) inQueue.push(data.subarray(from));
+  if (inQueue.dropped && !dropReport) {
+    dropReport = setTimeout(() => {
+      dropReport = null;
+      console.error(`virtual board: input overflow: ${inQueue.dropped} bytes dropped (the board had ` +
+        `${INPUT_CAP + inRing.size} unread before them)`);
+      inQueue.dropped = 0;
+    }, 1000);
+    dropReport.unref();
+  }
+  flushInput();
+}
+
+// Ctrl-C: the input the board has not read is discarded and the interrupt raised, as a board's
+// USB serial does (MicroPython shared/tinyusb/mp_usbd_cdc.c: "Clear the ring buffer"), so that
+// Ctrl-C is never stuck behind a flood of input.  With no code running it then goes in as a key.
+function ctrlC() {
+  inQueue.clear();
+  Atomics.store(ctl, CTL.FLUSH_TO, Atomics.load(ctl, CTL.IN_W));
+  Atomics.store(ctl, CTL.FLUSH_REQ, 1);
+  if (!injectInterrupt()) inQueue.push(Buffer.of(3));
+}
+
+function flushInput() {
+  if (inQueue.length) {
+    inQueue.drainInto(inRing);
     Atomics.notify(ctl, CTL.IN_W);
     if (worker) worker.postMessage({ t: "in" });
   }
-  if (backlog.length && !backlogTimer) {
-    backlogTimer = setTimeout(() => {
-      backlogTimer = null;
-      flushBacklog();
+  if (inQueue.length && !inTimer) {
+    inTimer = setTimeout(() => {
+      inTimer = null;
+      flushInput();
     }, 5);
   }
 }
 
 // ------------------------------------------------------------ the serial line
 
-let client = null;
+let line = null; // the TCP port (serial_tcp.mjs)
 let ptyBridge = null;
-
-// What a serial terminal or mpremote sends first: Enter, or a control character
-// (mpremote: "\r\x03").  An HTTP request (a web page's fetch or form POST to
-// 127.0.0.1), TLS or any other protocol starts with a printable byte or 0x16.
-const SERIAL_FIRST = new Set([1, 2, 3, 4, 5, 10, 13]);
-
-function refuse(sock, why) {
-  console.error(`virtual board: refused a client: ${why}`);
-  sock.end(`\r\nvirtual board: refused: ${why}\r\n`);
-  setTimeout(() => sock.destroy(), 1000).unref();
-}
-
-// One client at a time: while a connection is open the port stops listening, so a second
-// one is refused by the host's TCP stack and mpremote says "failed to access socket://...
-// (it may be in use by another program)"; with --takeover a new client is accepted and
-// the previous one is dropped, as reopening a serial device would.
-let conns = 0;
-let listening = false;
-let boundPort = null;
-
-function relisten() {
-  if (listening || shuttingDown || (conns > 0 && !opts.takeover)) return;
-  listening = true;
-  server.listen(boundPort, opts.host);
-}
-
-const server = net.createServer((sock) => {
-  conns++;
-  if (!opts.takeover && listening) {
-    listening = false;
-    server.close();
-  }
-  sock.setNoDelay(true);
-  sock.on("error", () => {});
-  let attached = false;
-  let checked = false;
-  sock.on("data", (d) => {
-    if (!checked) {
-      checked = true;
-      if (!SERIAL_FIRST.has(d[0])) {
-        const http = /^[A-Z]{3,8} \S+ HTTP\//.test(d.subarray(0, 200).toString("latin1"));
-        return refuse(sock, http ? "an HTTP request is not a serial terminal"
-          : "not a serial terminal or mpremote (a terminal's first key must be Enter)");
-      }
-      if (client && client !== sock) {
-        client.end("\r\nvirtual board: another client took the line over (--takeover)\r\n");
-      }
-      client = sock;
-      attached = true;
-    }
-    if (attached && client === sock) feedInput(d);
-  });
-  let gone = false;
-  const bye = () => {
-    if (gone) return;
-    gone = true;
-    conns--;
-    if (client === sock) client = null;
-    relisten();
-  };
-  sock.on("end", () => {
-    if (client === sock) client = null;
-    sock.end();
-  });
-  sock.on("close", bye);
-});
-
-server.on("error", (e) => {
-  if (boundPort !== null) {
-    console.error(`virtual board: cannot listen on ${opts.host}:${boundPort} again: ${e.message}; stopping`);
-    return shutdown(3);
-  }
-  if (e.code === "EADDRINUSE") {
-    console.error(
-      `virtual board: port ${opts.port} on ${opts.host} is already in use.\n` +
-        `  Another virtual board may be running (stop it with 'make board-stop'),\n` +
-        `  or pick another port: BOARD_TCP=2324 make board  (or --port 2324).`,
-    );
-  } else {
-    console.error(`virtual board: cannot listen on ${opts.host}:${opts.port}: ${e.message}`);
-  }
-  process.exit(3);
-});
 
 function startPty() {
   // Node has no pty API; a small Python helper owns the pty pair and relays.
@@ -560,7 +510,7 @@ function shutdown(code = 0) {
   if (shuttingDown) return;
   shuttingDown = true;
   try {
-    if (readPidfile().pid === process.pid) fs.rmSync(opts.pidfile);
+    removeOwnPidfile(opts.pidfile);
   } catch {}
   try {
     if (ttyLink && fs.readlinkSync(ttyLink).startsWith("/dev/")) fs.rmSync(ttyLink);
@@ -579,7 +529,7 @@ let bannerShown = false;
 function announce() {
   if (bannerShown || !listenUrl || (ptyBridge && !ttyShown)) return;
   bannerShown = true;
-  const mb = (opts.flashSize / 1048576).toFixed(opts.flashSize % 1048576 ? 2 : 0);
+  const mb = opts.board === "pico" ? "1.38" : (opts.flashSize / 1048576).toFixed(opts.flashSize % 1048576 ? 2 : 0);
   const room = opts.profile ? `profile ${opts.profile}` : `scenario ${opts.scenario}`;
   console.log(
     (ttyShown ? `  REPL: mpremote connect ${ttyShown} repl\n` : "") +
@@ -590,16 +540,38 @@ function announce() {
   );
 }
 
-server.once("listening", () => {
-  const port = server.address().port;
-  boundPort = port;
-  fs.mkdirSync(path.dirname(opts.pidfile), { recursive: true });
-  writePidfile();
-  startWorker();
-  listenUrl = `socket://${opts.host}:${port}`;
-  console.log(`virtual board: MicroPython VM listening on ${listenUrl}`);
-  if (opts.pty) startPty();
-  announce();
-});
-listening = true;
-server.listen(opts.port, opts.host);
+line = serveSerialLine(
+  {
+    host: opts.host,
+    port: opts.port,
+    takeover: opts.takeover,
+    idleMs: opts.idleTimeout * 1000,
+    firstByteMs: opts.firstByteTimeout * 1000,
+  },
+  {
+    input: feedInput,
+    busy: () => Atomics.load(ctl, CTL.BUSY) === 1,
+    log: (msg) => console.error(`virtual board: ${msg}`),
+    listenError: (e) => {
+      if (e.code === "EADDRINUSE") {
+        console.error(
+          `virtual board: port ${opts.port} on ${opts.host} is already in use.\n` +
+            `  Another virtual board may be running (stop it with 'make board-stop'),\n` +
+            `  or pick another port: BOARD_TCP=2324 make board  (or --port 2324).`,
+        );
+      } else {
+        console.error(`virtual board: cannot listen on ${opts.host}:${opts.port}: ${e.message}`);
+      }
+      process.exit(3);
+    },
+    listening: (port) => {
+      writePidfile(opts.pidfile, SERVER_SCRIPT); // never through a link at that name (boardproc.mjs)
+      startWorker();
+      listenUrl = `socket://${opts.host}:${port}`;
+      console.log(opts.board === "pico" ? `virtual Pico: RP2040 firmware listening on ${listenUrl}`
+        : `virtual board: MicroPython VM listening on ${listenUrl}`);
+      if (opts.pty) startPty();
+      announce();
+    },
+  },
+);

@@ -15,8 +15,10 @@ import fs from "node:fs";
 import path from "node:path";
 import { pathToFileURL } from "node:url";
 import { CTL, Ring } from "./rings.mjs";
+import { FLASH, installFiles } from "./vm_files.mjs";
 
-const { shared, wasmDir, flashDir, vmFiles, configPy, heapsize, powerOnMs, compiled, flashLimit } = workerData;
+const { shared, wasmDir, flashDir, vmFiles, configPy, heapsize, powerOnMs, compiled, flashLimit, ramDisk, ramBytes } =
+  workerData;
 const ctl = new Int32Array(shared.ctl);
 const inRing = new Ring(ctl, shared.inBuf, CTL.IN_W, CTL.IN_R);
 const outRing = new Ring(ctl, shared.outBuf, CTL.OUT_W, CTL.OUT_R);
@@ -88,32 +90,52 @@ let memory = null;
 let ticksSpins = 0;
 let ticksLast = -1;
 
-// Two changes to the VM as loaded, both at instantiation and neither touching
+// Three changes to the VM as loaded, all at instantiation and none touching
 // the package on disk:
 // - its linear memory is declared shared, so that the server thread can raise
 //   KeyboardInterrupt in code that never calls out of the VM (a bare
 //   `while True: pass`), exactly as a UART interrupt handler does on a board;
+// - that memory's maximum is the board's RAM (--ram): the MicroPython heap grows
+//   from --heap on demand (the port adds heap areas when full), and the build
+//   allows 2 GiB, all of it the host process's; beyond --ram board code gets
+//   MemoryError, as on a board;
 // - ticks_ms counts from power-on (not from each soft reset, as the stock
 //   import does) and a busy-wait on it (time.sleep is one) gives the CPU back.
-function makeMemoryShared(bytes) {
+function makeMemoryShared(bytes, maxBytes) {
   const b = new Uint8Array(bytes);
   const leb = (p) => {
     let v = 0, s = 0, x;
     do { x = b[p++]; v |= (x & 0x7f) << s; s += 7; } while (x & 0x80);
     return [v >>> 0, p];
   };
+  const toLeb = (v) => {
+    const out = [];
+    do {
+      let x = v & 0x7f;
+      v >>>= 7;
+      if (v) x |= 0x80;
+      out.push(x);
+    } while (v);
+    return out;
+  };
   let p = 8;
   while (p < b.length) {
     const id = b[p];
     const [size, body] = leb(p + 1);
     if (id === 5) {
-      // One memory, flags 1 = "has maximum"; shared memories need a maximum.
-      if (b[body] === 1 && b[body + 1] === 1) {
-        const patched = Uint8Array.from(b);
-        patched[body + 1] = 3;
-        return patched;
-      }
-      return null;
+      // One memory, flags 1 = "has maximum"; shared memories need a maximum (flags 3).
+      if (b[body] !== 1 || b[body + 1] !== 1) return null;
+      const [initial, q] = leb(body + 2);
+      const [max] = leb(q);
+      const pages = Math.max(initial, Math.min(max, Math.ceil(maxBytes / 65536)));
+      const section = [1, 3, ...toLeb(initial), ...toLeb(pages)];
+      const out = new Uint8Array(b.length - size + section.length + 8);
+      const head = [5, ...toLeb(section.length)];
+      out.set(b.subarray(0, p), 0);
+      out.set(head, p);
+      out.set(section, p + head.length);
+      out.set(b.subarray(body + size), p + head.length + section.length);
+      return out.subarray(0, p + head.length + section.length + (b.length - body - size));
     }
     p = body + size;
   }
@@ -167,7 +189,7 @@ WebAssembly.instantiate = async function (source, imports) {
   if (!(source instanceof WebAssembly.Module) && imports?.env?.mp_js_ticks_ms) {
     if (!wasmModule && compiled) wasmModule = compiled;
     if (!wasmModule) {
-      const patched = makeMemoryShared(source);
+      const patched = makeMemoryShared(source, ramBytes);
       if (!patched) log("warning: could not make VM memory shared; Ctrl-C cannot stop a tight loop");
       wasmModule = await WebAssembly.compile(patched || source);
       // compiled once per server: the next workers (soft resets) reuse it
@@ -181,7 +203,7 @@ WebAssembly.instantiate = async function (source, imports) {
       if (kbd && pendingInterrupt()) return (t + SLEEP_BREAK_MS) >>> 0;
       if (t === ticksLast) {
         if (++ticksSpins > 200) {
-          Atomics.wait(ctl, CTL.SIZE - 1, 0, 1);
+          Atomics.wait(ctl, CTL.NAP, 0, 1);
           ticksSpins = 0;
         }
       } else {
@@ -191,6 +213,13 @@ WebAssembly.instantiate = async function (source, imports) {
       return t;
     };
     mapSyscallErrors(imports);
+    // growth past --ram fails without the glue's error message for each attempt (the heap
+    // grows by doubling, so it stops between half of --ram and all of it)
+    const resize = imports.env.emscripten_resize_heap;
+    if (typeof resize === "function" && !resize.__capped) {
+      imports.env.emscripten_resize_heap = (size) => ((size >>> 0) > ramBytes ? 0 : resize(size));
+      imports.env.emscripten_resize_heap.__capped = true;
+    }
     // `obj.attr = v` from Python on a frozen object (freezeIntrinsics) does nothing, as in
     // sloppy JavaScript, instead of throwing through the VM's C frames
     const storeAttr = imports.env.store_attr;
@@ -338,13 +367,23 @@ function clearPendingInterrupt() {
   if (kbd) new Uint32Array(memory.buffer, kbd.pending, 1)[0] = 0;
 }
 
+// Ctrl-C on the line discards the input the board has not read (the server asks, this thread
+// does it: only the reader moves the read index), as a board's USB serial does.
+function applyFlush() {
+  if (Atomics.exchange(ctl, CTL.FLUSH_REQ, 0) === 0) return;
+  const to = Atomics.load(ctl, CTL.FLUSH_TO);
+  if (((to - Atomics.load(ctl, CTL.IN_R)) | 0) > 0) Atomics.store(ctl, CTL.IN_R, to);
+}
+
 // stdin for running Python code (sys.stdin, input()): block until a byte
 // arrives; return 0 bytes (EOF) if Ctrl-C was injected meanwhile so that the
 // pending KeyboardInterrupt gets raised.
 function stdinRead(stream, buffer, offset, length) {
+  applyFlush();
   while (inRing.available() === 0) {
     if (pendingInterrupt()) return 0;
     Atomics.wait(ctl, CTL.IN_W, Atomics.load(ctl, CTL.IN_W), 100);
+    applyFlush();
   }
   const data = inRing.read(length);
   for (let i = 0; i < data.length; i++) buffer[offset + i] = data[i];
@@ -354,143 +393,6 @@ function stdinRead(stream, buffer, offset, length) {
 function stdoutWrite(stream, buffer, offset, length) {
   emitCooked(new Uint8Array(buffer.buffer, buffer.byteOffset + offset, length).slice());
   return length;
-}
-
-// ------------------------------------------------------------ flash mirror
-
-// The VM sees an in-memory filesystem; every change under /flash is mirrored
-// to a directory on the host when it happens (a file when it is closed), so a
-// soft reset, a hard reset and a killed process all find the same files.
-const FLASH = "/flash";
-
-function hostPathOf(p) {
-  // VfsPosix hands relative paths to libc once it has chdir'ed into /flash.
-  const n = path.posix.resolve(FS.cwd(), p);
-  if (n === FLASH) return flashDir;
-  if (!n.startsWith(FLASH + "/")) return null;
-  return path.join(flashDir, ...n.slice(FLASH.length + 1).split("/"));
-}
-
-function persistFile(vmPath) {
-  const host = hostPathOf(vmPath);
-  if (!host) return;
-  let data;
-  try {
-    data = FS.readFile(vmPath);
-  } catch {
-    return; // removed while open
-  }
-  fs.mkdirSync(path.dirname(host), { recursive: true });
-  const tmp = path.join(path.dirname(host), `.vboard-tmp-${process.pid}-${path.basename(host)}`);
-  fs.writeFileSync(tmp, data);
-  fs.renameSync(tmp, host);
-}
-
-function loadFlash(hostDir, vmDir) {
-  for (const ent of fs.readdirSync(hostDir, { withFileTypes: true })) {
-    if (ent.name.startsWith(".vboard-tmp-")) continue;
-    const h = path.join(hostDir, ent.name);
-    const v = vmDir + "/" + ent.name;
-    if (ent.isDirectory()) {
-      FS.mkdir(v);
-      loadFlash(h, v);
-    } else if (ent.isFile()) {
-      FS.writeFile(v, fs.readFileSync(h));
-    }
-  }
-}
-
-// Bytes the flash holds as a LittleFS/FAT volume counts them: whole blocks per file and per
-// directory (the same count as vboard_rt.FlashVfs.statvfs).
-const BLOCK = 4096;
-function flashUsed(dir = FLASH) {
-  let n = 0;
-  for (const name of FS.readdir(dir)) {
-    if (name === "." || name === "..") continue;
-    const p = dir + "/" + name;
-    const st = FS.stat(p);
-    if (FS.isDir(st.mode)) n += BLOCK + flashUsed(p);
-    else n += Math.ceil(st.size / BLOCK) * BLOCK;
-  }
-  return n;
-}
-
-function blocksOf(size) {
-  return Math.ceil(size / BLOCK) * BLOCK;
-}
-
-const ENOSPC_WASI = 51; // mapped to Linux ENOSPC (28) at the syscall boundary
-
-function mirrorFlash() {
-  // A full flash refuses the write (OSError ENOSPC), as a board's does; nothing reaches the
-  // host beyond the board's flash size.
-  const origWrite = FS.write;
-  FS.write = function (stream, buffer, offset, length, position, canOwn) {
-    const p = stream.path || "";
-    if (flashLimit && (p === FLASH || p.startsWith(FLASH + "/")) && stream.node) {
-      const size = stream.node.usedBytes !== undefined ? stream.node.usedBytes : FS.stat(p).size;
-      const pos = typeof position === "number" ? position : stream.position;
-      const end = (stream.flags & 1024) !== 0 ? size + length : pos + length; // O_APPEND
-      if (end > size && blocksOf(end) > blocksOf(size) &&
-          flashUsed() - blocksOf(size) + blocksOf(end) > flashLimit) {
-        throw new FS.ErrnoError(ENOSPC_WASI);
-      }
-    }
-    return origWrite.call(FS, stream, buffer, offset, length, position, canOwn);
-  };
-  const origMkdir = FS.mkdir;
-  FS.mkdir = function (p, mode) {
-    if (flashLimit && hostPathOf(p) && flashUsed() + BLOCK > flashLimit) throw new FS.ErrnoError(ENOSPC_WASI);
-    return origMkdir.call(FS, p, mode);
-  };
-  const wrap = (name, after) => {
-    const orig = FS[name];
-    FS[name] = function (...args) {
-      const r = orig.apply(FS, args);
-      try {
-        after(...args);
-      } catch (e) {
-        log(`flash mirror: ${name} ${args[0]}: ${e.message}`);
-      }
-      return r;
-    };
-  };
-  const origClose = FS.close;
-  FS.close = function (stream) {
-    const vmPath = stream.path;
-    const wrote = (stream.flags & 3) !== 0 && stream.node && FS.isFile(stream.node.mode);
-    const r = origClose.call(FS, stream);
-    if (wrote && vmPath) {
-      try {
-        persistFile(vmPath);
-      } catch (e) {
-        log(`flash mirror: write ${vmPath}: ${e.message}`);
-      }
-    }
-    return r;
-  };
-  wrap("mkdir", (p) => {
-    const h = hostPathOf(p);
-    if (h) fs.mkdirSync(h, { recursive: true });
-  });
-  wrap("rmdir", (p) => {
-    const h = hostPathOf(p);
-    if (h) fs.rmSync(h, { recursive: true, force: true });
-  });
-  wrap("unlink", (p) => {
-    const h = hostPathOf(p);
-    if (h) fs.rmSync(h, { force: true });
-  });
-  wrap("rename", (a, b) => {
-    const ha = hostPathOf(a), hb = hostPathOf(b);
-    if (ha && hb) {
-      fs.renameSync(ha, hb);
-    } else if (hb) {
-      persistFile(b);
-    } else if (ha) {
-      fs.rmSync(ha, { recursive: true, force: true });
-    }
-  });
 }
 
 // ------------------------------------------------------------ boot
@@ -522,6 +424,7 @@ function setBusy(on) {
 // input up to it is dropped.
 function ctrlCWaiting() {
   if (!kbd) return;
+  applyFlush();
   const n = inRing.available();
   if (n === 0) return;
   const r = Atomics.load(ctl, CTL.IN_R);
@@ -577,12 +480,14 @@ async function bootVM() {
     Object.assign(stream.stream_ops, ops);
   }
   kbd = discoverInterrupt(M);
-  parentPort.postMessage({ t: "mem", memory: kbd ? memory : null, writes: kbd ? kbd.writes : null });
+  parentPort.postMessage({ t: "mem", memory: kbd ? memory : null, writes: kbd ? kbd.writes : null,
+                          pending: kbd ? kbd.pending : null });
 
   fs.mkdirSync(flashDir, { recursive: true });
   FS.mkdir(FLASH);
-  loadFlash(flashDir, FLASH);
-  mirrorFlash();
+  const files = installFiles({ FS, flashDir, flashLimit, ramDisk, log });
+  files.load();
+  files.install();
   FS.mkdir("/vboard");
   for (const [name, text] of Object.entries(vmFiles)) FS.writeFile("/vboard/" + name, text);
   FS.writeFile("/vboard/vboard_config.py", configPy);
@@ -756,6 +661,7 @@ function pump() {
   try {
     let pasted = 0;
     while (ready) {
+      applyFlush();
       const c = inRing.readByte();
       if (c < 0) break;
       if (mode === "raw") {

@@ -52,12 +52,12 @@ class FlashVfs:
     # (a VfsPosix) with what a LittleFS/FAT board adds: sizes in ilistdir
     # (mpremote ls shows them) and statvfs of a flash chip, not of the host.
     BLOCK = 4096
-    BLOCKS = 512  # 2 MiB, a Pico-sized filesystem
 
-    def __init__(self, root):
+    def __init__(self, root, size):
         import vfs
 
         self._fs = vfs.VfsPosix(root)
+        self.blocks = size // self.BLOCK  # --flash-size; 2 MiB (a Pico-sized filesystem) by default
 
     def __repr__(self):
         return "<VfsFlash>"
@@ -82,12 +82,13 @@ class FlashVfs:
             if kind == 0x4000:
                 n += self.BLOCK + self._used(path.rstrip("/") + "/" + name)
             else:
-                n += (size + self.BLOCK - 1) // self.BLOCK * self.BLOCK
+                # a file takes at least one block (the host counts the same: vm_files.mjs)
+                n += max(1, (size + self.BLOCK - 1) // self.BLOCK) * self.BLOCK
         return n
 
     def statvfs(self, path):
-        free = max(0, self.BLOCKS - self._used("/") // self.BLOCK)
-        return (self.BLOCK, self.BLOCK, self.BLOCKS, free, free, 0, 0, 0, 0, 255)
+        free = max(0, self.blocks - self._used("/") // self.BLOCK)
+        return (self.BLOCK, self.BLOCK, self.blocks, free, free, 0, 0, 0, 0, 255)
 
     def open(self, path, mode):
         return self._fs.open(path, mode)
@@ -163,10 +164,11 @@ def start():
     import builtins
     import os
 
+    import vboard_config
     import vfs
 
     vfs.umount("/")
-    vfs.mount(FlashVfs("/flash"), "/")
+    vfs.mount(FlashVfs("/flash", vboard_config.FLASH_BYTES), "/")
     os.chdir("/")
     builtins.input = _input
     # Board modules are built in on a real board: load them now, while their

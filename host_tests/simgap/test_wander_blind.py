@@ -1,0 +1,57 @@
+"""Blind run of the gap diagnosis on the wander set (tools/gapbench/wander.py, written apart from
+the diagnosis and from gen.py): one log per situation at one seed drawn at random per run
+(printed; WANDER_SEED=N repeats it), diagnosed from its CSV files through the front door, then
+scored against the generator's truth with issue 22's targets. `python -m tools gap-check --set
+wander` runs the full sweep (20 seeds, 3 logs per situation)."""
+import os
+import random
+
+import pytest
+
+from tools.gapbench import wander, wandercheck
+
+SEED = int(os.environ.get("WANDER_SEED") or random.SystemRandom().randint(1, 100_000))
+EFFECT_SITUATIONS = [s for s in wander.SITUATIONS if s not in wandercheck.NO_VERDICT]
+
+
+@pytest.fixture(scope="module")
+def rows(tmp_path_factory):
+    print("\nwander blind set at seed %d (WANDER_SEED=%d repeats it)" % (SEED, SEED))
+    rows = wandercheck.run([SEED], logs=1, jobs=min(2, os.cpu_count() or 1),
+                           outdir=str(tmp_path_factory.mktemp("wander")))
+    for r in rows:
+        print(wandercheck.log_line(r))
+    wandercheck.report(rows)
+    return {r["situation"]: r for r in rows}
+
+
+def test_every_situation_was_diagnosed(rows):
+    assert sorted(rows) == sorted(wander.SITUATIONS)
+
+
+@pytest.mark.parametrize("situation", EFFECT_SITUATIONS)
+def test_planted_effect_named_alone_on_its_axes(rows, situation):
+    r = rows[situation]
+    assert r["alone"], "seed %d: planted %s, diagnosis claims %s" % (SEED, r["planted"], r["claims"])
+
+
+@pytest.mark.parametrize("situation", wandercheck.NO_VERDICT)
+def test_no_verdict_on_noise_and_off_catalogue_offsets(rows, situation):
+    r = rows[situation]
+    assert r["no_verdict"], "seed %d: verdict %s on %s" % (SEED, r["verdict"], r["claims"])
+
+
+@pytest.mark.parametrize("situation", wander.SITUATIONS)
+def test_unexplained_residual_warned_above_1_5x_the_floor(rows, situation):
+    r = rows[situation]
+    assert not r["unwarned"], "seed %d: final/%s floor %s without unexplained_residual on %s" % (
+        SEED, r["floor"], r["ratio_to_noise"], r["unwarned"])
+
+
+@pytest.mark.parametrize("situation", [s for s in wander.SITUATIONS if s != "off_catalogue"])
+def test_final_withheld_rms_within_1_25x_the_oracle_floor(rows, situation):
+    r = rows[situation]
+    assert r["rms_scored"]
+    assert r["rms_ok"], "seed %d: withheld RMS / oracle floor %s (sim alone %s)" % (
+        SEED, {a: round(v, 2) for a, v in r["rms_ratio"].items()},
+        {a: round(r["sim_only_rms"][a] / r["oracle_floor"][a], 2) for a in wander.AXES})

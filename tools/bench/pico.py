@@ -1,0 +1,135 @@
+"""The virtual Raspberry Pi Pico (tools/pico): cycles per 3-axis sample on the RP2040 (Cortex-M0+,
+125 MHz, rp2040js's cycle counts), boot heap on the Pico's own heap, and power cuts through a store
+save.
+
+The compensation scripts are the instruction bench's (tools/bench/instructions.py: the same set-up,
+loops net of the empty loop, best of 3 after gc.collect()), run on the real rp2 firmware with
+tempcomp deployed as ``make deploy`` installs it; simulated time is exact, so ``ticks_us()`` over n
+calls gives 125 cycles per microsecond. ``read_compensated`` and ``read_raw`` go through the real
+I2C peripheral (400 kHz, each byte's time on the wire) to the simulated MPU-6500. The power-cut
+sweep cuts a store save at >= 200 points spread through its flash operations and reboots after
+each (tools/pico/cut.mjs); every restore must give the old or the new calibration.
+"""
+
+import random
+import time
+
+from tools.bench import instructions
+
+CYCLES_PER_NS = 0.125
+
+MPU_REAL = r"""
+import micropython
+from array import array
+import tempcomp_board as b
+from tempcomp.mpu6xxx import MPU6xxx
+from tempcomp.mpu6xxx_tc import BiasModel
+floor()
+imu = MPU6xxx(b.i2c())
+t0 = imu.temp_raw()
+imu.compensate(BiasModel([(t0 - 2000, (10.5, -20.25, 3.0), (1000.0, -501.5, 2300.0)),
+                          (t0, (12.0, -19.0, 2.5), (1004.0, -498.0, 2296.5)),
+                          (t0 + 2000, (14.5, -17.0, 1.0), (1010.0, -493.0, 2290.0))]))
+out = array("i", [0] * 7)
+raw = array("i", [0] * 7)
+insn("real_read_raw", imu.read_raw, (raw,), 200)
+insn("real_read_compensated", imu.read_compensated, (out,), 200)
+gc.collect()
+fn = imu.read_compensated
+i = 0
+micropython.heap_lock()
+t0 = time.ticks_us()
+while i < 200:
+    fn(out)
+    i += 1
+d = time.ticks_diff(time.ticks_us(), t0)
+micropython.heap_unlock()
+print("INSN real_read_compensated_locked %.1f 1" % (d * 1000.0 / 200))
+"""
+
+BOOT_HEAP = r"""
+import gc
+gc.collect()
+f0 = gc.mem_free()
+a0 = gc.mem_alloc()
+import tempcomp_board
+from tempcomp import sensors
+gc.collect()
+print("HEAP", f0 + a0, f0, gc.mem_alloc() - a0)
+"""
+
+STORE_SETUP = ("from tempcomp import store\nst = store.Store('/cut.cal')\nst.save('gyro0', (1, 2, 3))\n"
+               "st.save('mlx', tuple(range(24)))\nprint(st.load('gyro0'))\n")
+STORE_SAVE = "from tempcomp import store\nst = store.Store('/cut.cal')\nst.save('gyro0', (4, 5, 6))\n"
+STORE_CHECK = "from tempcomp import store\nst = store.Store('/cut.cal')\nprint(st.load('gyro0'), st.load('mlx'))\n"
+
+ROWS = [
+    ("empty_loop", "empty loop (per pass; subtracted from every row)"),
+    ("apply_be16", "3-axis compensated sample, apply_be16 (native kernels)"),
+    ("apply_be16_pure", "same, forced pure Python"),
+    ("apply_be16_n", "batch apply_be16_n, per sample (32 per call)"),
+    ("apply_be16_n_pure", "batch, forced pure Python, per sample"),
+    ("float_naive", "anchor: naive float 3-axis sample"),
+    ("float_careful", "anchor: careful float 3-axis sample"),
+    ("real_read_raw", "MPU-6xxx read_raw through the real I2C (400 kHz)"),
+    ("real_read_compensated", "MPU-6xxx read_compensated through the real I2C"),
+    ("real_read_compensated_locked", "same, the loop under heap_lock()"),
+]
+
+
+def measure(pico):
+    got = {}
+    for code in (instructions.HARNESS + instructions.CORE % dict(
+            offs=instructions.OFFS, scs=instructions.SCS, t_cal=instructions.T_CAL, batch=instructions.BATCH),
+            instructions.HARNESS + MPU_REAL):
+        net, _ = instructions.parse(pico.run(code, timeout=1800))
+        got.update({k: v * CYCLES_PER_NS for k, v in net.items()})
+    return got
+
+
+def sweep(pico, n=200, seed=1):
+    from tools.board import picoctl
+    ref = picoctl.cut_sweep(pico.flash, STORE_SETUP, STORE_SAVE, STORE_CHECK, [])["reference"]
+    ops = ref["ops"]
+    rng = random.Random(seed)
+    # evenly through every flash operation of the save, plus random cycles over the whole save
+    per = max(1, (n * 3 // 4) // len(ops))
+    cuts = [{"op": k, "frac": (i + 0.5) / per} for k in range(len(ops)) for i in range(per)]
+    cuts += [{"cycle": rng.randrange(ops[0]["start"], ref["cycles"])} for _ in range(n - len(cuts))]
+    res = picoctl.cut_sweep(pico.flash, STORE_SETUP, STORE_SAVE, STORE_CHECK, cuts, timeout=7200)["cuts"]
+    old, new = "(1, 2, 3) %r" % (tuple(range(24)),), "(4, 5, 6) %r" % (tuple(range(24)),)
+    counts = {"old": 0, "new": 0, "wrong": 0}
+    for r in res:
+        c = (r["check"] or "").strip()
+        counts["old" if c == old else "new" if c == new else "wrong"] += 1
+    return len(ops), counts
+
+
+def bench(report):
+    from tools.board import picoctl
+    why = picoctl.missing()
+    if why:
+        report("virtual Pico: not available", 0, why)
+        return
+    t0 = time.time()
+    with picoctl.PicoInterp() as pico:
+        got = measure(pico)
+        for key, label in ROWS:
+            if key in got:
+                print("  %-66s %10s cycles" % (label, "{:,.0f}".format(got[key])), flush=True)
+        heap = [line.split()[1:] for line in pico.run(BOOT_HEAP).splitlines() if line.startswith("HEAP")][0]
+        report("Pico: 3-axis apply_be16 (native), cycles beyond the loop", got["apply_be16"], "cycles")
+        report("Pico: same, pure Python / naive float", got["apply_be16_pure"] / got["float_naive"], "x")
+        report("Pico: batch apply_be16_n, per sample", got["apply_be16_n"], "cycles")
+        report("Pico: read_compensated / read_raw through the real I2C",
+               got["real_read_compensated"] / got["real_read_raw"], "x")
+        report("Pico: heap at boot (free of total)", float(heap[1]) / 1024, "KB of %.0f KB" % (float(heap[0]) / 1024))
+        report("Pico: import tempcomp_board + tempcomp.sensors", float(heap[2]) / 1024, "KB")
+        nops, counts = sweep(pico)
+        report("Pico: power cuts through a store save (%d flash ops), restored old / new / wrong" % nops,
+               counts["wrong"], "wrong (%d old, %d new)" % (counts["old"], counts["new"]))
+    print("  (virtual Pico bench: %.0f s)" % (time.time() - t0), flush=True)
+
+
+if __name__ == "__main__":
+    bench(lambda name, value, unit: print("%-70s %10.3f %s" % (name, value, unit)))
