@@ -65,12 +65,12 @@ def test_bench_exits_1_after_an_area_fails_and_runs_the_rest(monkeypatch, capsys
 
 
 def test_bench_exits_1_when_a_budget_is_over(monkeypatch, capsys):
-    # the RAM area's .mpy budget rows, measured on the Cortex-M3 firmware, against a session
-    # budget of 1 KB that the real import (about 17 KB) is over: printed OVER, exit status 1
+    # the RAM area's session budget row, measured on the Cortex-M3 firmware, against a budget of
+    # 1 KB that the real import (about 17 KB) is over: printed OVER, exit status 1
     why = fw.missing("an385")
     if why:
         skip_unless_ci("an385 cannot run: %s" % why)
-    monkeypatch.setenv("BENCH_RAM", "budgets")
+    monkeypatch.setenv("BENCH_RAM", "session")
     monkeypatch.setattr(bench_ram, "BUDGET_SESSION", 1024)
     assert bench_main.main(["ram", "--no-write"]) == 1
     out = capsys.readouterr().out

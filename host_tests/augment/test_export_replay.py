@@ -46,7 +46,7 @@ def test_device_shrink_equals_host_shrink(effect):
     for key, now in (("base", base["rms"]["x"]), ("aug", full["rms"]["x"]),
                      ("ratio", full["rms"]["x"] / base["rms"]["x"]), ("host", h["augmented"]["x"] / h["base_only"]["x"])):
         was = rows["shrink_%s_%s" % (effect, key)]["value"]
-        assert was == pytest.approx(now, rel=2e-6), (
+        assert was == pytest.approx(now, rel=1e-5), (
             "docs/bench.json's %s %s is %r, the code gives %r: run `python -m tools bench augment`" % (effect, key, was, now))
     for r in (full, base):
         assert r["allocated_per_sample"] == 0 and r["heap_locked"]

@@ -61,4 +61,4 @@ def test_the_documented_scores_are_these(rows):
         assert (got["reduced_" + key]["value"], got["reduced_%s_n" % key]["value"]) == (hits, n), (
             "docs/bench.json's reduced-set %s is not what the diagnosis gives now: run `python -m tools bench "
             "gapcheck`" % key)
-    assert got["reduced_worst_ratio"]["value"] == pytest.approx(max(r["ratio"] for r in rows), rel=2e-6)
+    assert got["reduced_worst_ratio"]["value"] == pytest.approx(max(r["ratio"] for r in rows), rel=1e-5)

@@ -18,6 +18,7 @@ the first ``gc.mem_alloc()`` reading, so its own heap is not counted.
 
     .venv/bin/python -m tools bench ram
     BENCH_RAM=budgets .venv/bin/python -m tools bench ram     # only the .mpy budget rows
+    BENCH_RAM=session .venv/bin/python -m tools bench ram     # only the session's budget row
 """
 
 import os
@@ -328,7 +329,7 @@ BOOTS = (("sensors", "sensors.restore(board, which=mpu6xxx) + read_compensated",
          ("registers", "MPU6xxx.restore (offset registers) + read_raw", "BOOT_REGISTERS"))
 
 
-PARTS = ("imports", "budgets", "steps", "frozen")
+PARTS = ("imports", "budgets", "steps", "frozen")  # and "session": the session's budget row alone
 
 
 def bench(report, imports=True, frozen=True):
@@ -364,6 +365,8 @@ def bench(report, imports=True, frozen=True):
             report("AN385 the largest import from .py", big, _kb(sizes[big]), key="py_largest")
         if "budgets" in parts:
             _budgets(report, it, staged[1], ".mpy", "mpy")
+        elif "session" in parts:
+            _budgets(report, it, staged[1], ".mpy", "mpy", boots=())
         for how, tag, steps in (("", "steps_model", BOOT_STEPS), (" (mpu_tcc)", "steps_tcc", BOOT_STEPS_TCC)):
             if "steps" not in parts:
                 break
@@ -399,11 +402,11 @@ def bench(report, imports=True, frozen=True):
         shutil.rmtree(d, ignore_errors=True)
 
 
-def _budgets(report, it, staged, how, tag, frozen=False):
+def _budgets(report, it, staged, how, tag, frozen=False, boots=BOOTS):
     ses = measure_import(it, staged, "tempcomp.session", frozen)
     _report_kb(report, "AN385 `import tempcomp.session` from %s (budget %d KB)" % (how, BUDGET_SESSION // 1024), ses,
                "session_" + tag, BUDGET_SESSION)
-    for key, label, body in BOOTS:
+    for key, label, body in boots:
         v, _ = measure_boot(it, staged, globals()[body], frozen)
         _report_kb(report, "AN385 boot path from %s: %s (budget %d KB)" % (how, label, BUDGET_BOOT // 1024), v,
                    "boot_%s_%s" % (key, tag), BUDGET_BOOT)
