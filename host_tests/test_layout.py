@@ -1,5 +1,6 @@
 """The tree explains itself: every tools/ folder says what it is for, and the import rules between
-the roles hold (lib/ never imports the host; the diagnosis never sees how its benchmark is made)."""
+the roles hold (lib/ never imports the host; the diagnosis never sees how its benchmark is made);
+inside lib/, imports go one way (no cycles) and no module takes another's private names."""
 import ast
 import pathlib
 
@@ -131,6 +132,202 @@ def test_the_rules_catch_a_violation(tmp_path):
     finally:
         fake.unlink()
 
+
+# ---- lib/: one-way imports between the on-device modules ------------------------------------
+# Each family reads bottom-up (README "Layers"): a module imports only modules below it, at module
+# level or inside a function alike (a function-level import is how a board defers loading code,
+# not a licence to import upwards), and no module imports another's private (_name) helpers: a
+# helper two modules share is a public name of the module that owns it.
+
+
+def lib_modules(lib):
+    """{dotted name: path} of every module under lib ('tempcomp', 'tempcomp.store', ...)."""
+    out = {}
+    for p in sorted(pathlib.Path(lib).rglob("*.py")):
+        parts = p.relative_to(lib).with_suffix("").parts
+        if parts[-1] == "__init__":
+            parts = parts[:-1]
+        out[".".join(parts)] = p
+    return out
+
+
+def _package_of(name, path):
+    return name if path.name == "__init__.py" else name.rpartition(".")[0]
+
+
+def lib_imports(lib):
+    """(importer, imported module, line, names taken from it, aliases bound to it) for every import of
+    a lib module by a lib module, wherever the import statement stands."""
+    mods = lib_modules(lib)
+    out = []
+    for name, path in mods.items():
+        tree = ast.parse(path.read_text(), str(path))
+        pkg = _package_of(name, path)
+        for node in ast.walk(tree):
+            if isinstance(node, ast.Import):
+                for a in node.names:
+                    if a.name in mods:
+                        # `import a.b` binds a; `import a.b as c` binds c to a.b
+                        out.append((name, a.name, node.lineno, (), (a.asname,) if a.asname else ()))
+            elif isinstance(node, ast.ImportFrom):
+                base = node.module or ""
+                if node.level:
+                    up = pkg.split(".")[: len(pkg.split(".")) - (node.level - 1)]
+                    base = ".".join(up + ([node.module] if node.module else []))
+                taken = []
+                for a in node.names:
+                    sub = base + "." + a.name
+                    if sub in mods:  # `from tempcomp import store`: the submodule itself
+                        out.append((name, sub, node.lineno, (), (a.asname or a.name,)))
+                    else:
+                        taken.append(a.name)
+                if base in mods and taken:
+                    out.append((name, base, node.lineno, tuple(taken), ()))
+    return out
+
+
+def _private(n):
+    return n.startswith("_") and not (n.startswith("__") and n.endswith("__"))
+
+
+def lib_cycles(lib):
+    """Every import cycle among lib modules, each as a list of 'a -> b (file:line)' steps."""
+    graph = {}
+    where = {}
+    for a, b, line, _, _ in lib_imports(lib):
+        if a != b:
+            graph.setdefault(a, set()).add(b)
+            where.setdefault((a, b), line)
+    # Tarjan's strongly connected components; a component of two or more modules is a cycle
+    index, low, stack, on, comps = {}, {}, [], set(), []
+
+    def visit(v):
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        on.add(v)
+        for w in sorted(graph.get(v, ())):
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            comp = []
+            while True:
+                w = stack.pop()
+                on.discard(w)
+                comp.append(w)
+                if w == v:
+                    break
+            if len(comp) > 1:
+                comps.append(sorted(comp))
+
+    for v in sorted(graph):
+        if v not in index:
+            visit(v)
+    mods = lib_modules(lib)
+    out = []
+    for comp in comps:
+        steps = ["%s -> %s (%s:%d)" % (a, b, mods[a].relative_to(lib), where[(a, b)])
+                 for a in comp for b in sorted(graph.get(a, ())) if b in comp]
+        out.append(steps)
+    return out
+
+
+def lib_private_imports(lib):
+    """'file:line: name' for every private name one lib module takes from another: imported by
+    name, or read as an attribute of a module it imported."""
+    mods = lib_modules(lib)
+    bad = []
+    aliases = {}
+    for a, b, line, taken, bound in lib_imports(lib):
+        for n in taken:
+            if _private(n) and a != b:
+                bad.append("%s:%d imports %s from %s" % (mods[a].relative_to(lib), line, n, b))
+        for al in bound:
+            aliases.setdefault(a, {})[al] = b
+    for name, path in mods.items():
+        tree = ast.parse(path.read_text(), str(path))
+        known = aliases.get(name, {})
+        for node in ast.walk(tree):
+            if not (isinstance(node, ast.Attribute) and _private(node.attr)):
+                continue
+            # the dotted name the attribute is read from: st._crc, tempcomp.store._crc
+            chain = []
+            v = node.value
+            while isinstance(v, ast.Attribute):
+                chain.append(v.attr)
+                v = v.value
+            if not isinstance(v, ast.Name):
+                continue
+            dotted = ".".join([v.id] + chain[::-1])
+            target = known.get(v.id) if not chain else (dotted if dotted in mods else None)
+            if not chain and target is None and v.id in mods and v.id != name:
+                target = v.id
+            if target is not None and target != name:
+                bad.append("%s:%d reads %s.%s" % (path.relative_to(lib), node.lineno, target, node.attr))
+    return bad
+
+
+def test_lib_imports_have_no_cycles():
+    cycles = lib_cycles(ROOT / "lib")
+    assert not cycles, "import cycles among lib/ modules (a module may import only what lies below it):\n" + \
+        "\n".join("  cycle: " + "; ".join(c) for c in cycles)
+
+
+def test_lib_modules_import_no_private_names():
+    bad = lib_private_imports(ROOT / "lib")
+    assert not bad, "private names used across lib/ modules (make them public in the module that owns " \
+        "them, or move them to the one that uses them):\n  " + "\n  ".join(bad)
+
+
+def test_the_lib_rules_catch_a_violation(tmp_path):
+    # the checkers themselves, on a tree made here: a cycle through a function-level import, and a
+    # private helper taken by name and as a module attribute
+    pkg = tmp_path / "pkg"
+    (pkg / "sub").mkdir(parents=True)
+    (pkg / "__init__.py").write_text("")
+    (pkg / "low.py").write_text("def f():\n    from pkg import high\n    return high\n_helper = 1\n")
+    (pkg / "high.py").write_text("from pkg.low import f, _helper\n")
+    (pkg / "sub" / "__init__.py").write_text("from .. import low as L\nx = L._helper\n")
+    (pkg / "sub" / "leaf.py").write_text("import pkg.low\ny = pkg.low._helper\nfrom . import other\n")
+    (pkg / "sub" / "other.py").write_text("from pkg.sub import leaf\n")
+    cycles = lib_cycles(tmp_path)
+    assert sorted(sorted(c) for c in cycles) == [
+        ["pkg.high -> pkg.low (pkg/high.py:1)", "pkg.low -> pkg.high (pkg/low.py:2)"],
+        ["pkg.sub.leaf -> pkg.sub.other (pkg/sub/leaf.py:3)", "pkg.sub.other -> pkg.sub.leaf (pkg/sub/other.py:1)"],
+    ]
+    assert sorted(lib_private_imports(tmp_path)) == [
+        "pkg/high.py:1 imports _helper from pkg.low",
+        "pkg/sub/__init__.py:2 reads pkg.low._helper",
+        "pkg/sub/leaf.py:2 reads pkg.low._helper",
+    ]
+
+
+def readme_layers():
+    """{module: layer number} from README's "Layers" list (bottom = 1), module names in backquotes."""
+    import re
+
+    text = (ROOT / "README.md").read_text()
+    sec = text.split("### Layers: `lib/` from the ground up", 1)[1].split("\n#", 1)[0]
+    mods = {n.rpartition(".")[2] for n in lib_modules(ROOT / "lib") if n != "tempcomp"}
+    out = {}
+    for num, body in re.findall(r"^(\d+)\. (.*?)(?=^\d+\. |\Z)", sec, re.S | re.M):
+        for name in re.findall(r"`([a-z0-9_]+)`", body):
+            if name in mods:
+                out.setdefault(name, int(num))
+    return out
+
+
+def test_readme_layers_name_every_module_below_what_imports_it():
+    layer = readme_layers()
+    mods = {n.rpartition(".")[2] for n in lib_modules(ROOT / "lib") if n != "tempcomp"}
+    assert sorted(mods - set(layer)) == [], "modules missing from README's Layers list"
+    up = ["%s (layer %d) imports %s (layer %d)" % (a, layer[a.rpartition(".")[2]], b, layer[b.rpartition(".")[2]])
+          for a, b, _, _, _ in lib_imports(ROOT / "lib")
+          if a != "tempcomp" and b != "tempcomp"
+          and layer[a.rpartition(".")[2]] < layer[b.rpartition(".")[2]]]
+    assert not up, "README's Layers list puts these imports upwards:\n" + "\n".join(up)
 
 @pytest.mark.parametrize("mod", ["tools.simgap.diagnose", "tools.simgap", "tools.gapbench.gen", "tools.gapbench.wandercheck"])
 def test_the_wander_generator_may_see_nothing_of_ours(mod):

@@ -4,7 +4,8 @@ The same driver code that runs on CPython, on 32-bit MicroPython: one corrupted 
 of positions during calibrate(), a steady turn refused, the datasheet zero-rate limit, the
 periodic trim check. Prints "GARBLE kind runs raised wrong" and "OK name" / "FAIL name" lines.
 """
-from tempcomp.mpu6xxx import MIN_PACKETS, MPU6xxx, MPUError
+from tempcomp.mpu6xxx import MPU6xxx, MPUError
+from tempcomp.mpu6xxx_cal import MIN_PACKETS
 from tools.sim.buses import GARBLES, SimI2C
 from tools.sim.mpu6xxx_sim import MPU6xxxSim
 

@@ -9,7 +9,8 @@ from array import array
 
 from replay_i2c import ReplayI2C
 
-from tempcomp.mpu6xxx import MAX_PACKETS, MPU6xxx
+from tempcomp.mpu6xxx import MPU6xxx
+from tempcomp.mpu6xxx_cal import MAX_PACKETS
 from tempcomp.mpu6xxx_tc import BiasModel, compiled
 from tools.sim.buses import SimI2C
 from tools.sim.mpu6xxx_sim import MPU6xxxSim

@@ -11,6 +11,8 @@ import allocprobe
 
 from tempcomp import store as st
 from tempcomp import store_write
+from tempcomp.store_encode import encode
+from tempcomp.store_format import crc
 
 
 class PowerCut(BaseException):
@@ -61,7 +63,7 @@ def torn_writes(p):
     old = (1, 2, 2147483647)
     new = (-5, -6, -2147483648)
     real_open = builtins.open
-    n = len(store_write._encode(1, [st.Record("g", new, [0] * 3)]))
+    n = len(encode(1, [st.Record("g", new, [0] * 3)]))
     good = True
     for k in (0, 1, 4, 15, 16, 40, n - 5, n - 1, n):
         _rm(p)
@@ -178,7 +180,7 @@ def main():
     img = bytearray(f.read())
     f.close()
     img[16 + 28 + 1] = 40  # header, fixed entry, name "g": frac[0]
-    img[-4:] = struct.pack("<I", st._crc(img[:-4]))
+    img[-4:] = struct.pack("<I", crc(img[:-4]))
     f = open("/mal.cal", "wb")
     f.write(img)
     f.close()

@@ -101,8 +101,9 @@ def test_what_a_boot_loads_late_works_on_the_firmware(interp, tmp_path):
 
 @pytest.mark.parametrize("interp", ["an385"], indirect=True)
 def test_an_intact_store_is_read_by_the_reader_alone(interp, tmp_path):
-    # the boot's heap figure (docs/ram.md) holds only while an intact store loads nothing more:
-    # the diagnosis (store_check), the salvage and the writer come with a damaged copy or a save
+    # the boot's heap figure (docs/ram.md) holds only while an intact store loads nothing more than
+    # the facade and the format it stands on: the diagnosis (store_check), the salvage, the encoder
+    # and the writer come with a damaged copy or a save
     from tempcomp.store import Store
 
     st = Store(str(tmp_path / "t.cal"))
@@ -112,4 +113,22 @@ def test_an_intact_store_is_read_by_the_reader_alone(interp, tmp_path):
                      "print('LOADED', ' '.join(sorted(m for m in sys.modules if m.startswith('tempcomp'))))\n",
                      mounts=(str(tmp_path) + ":/st",))
     assert "VAL (3, 4)" in out, out
-    assert out.split("LOADED ", 1)[1].split() == ["tempcomp", "tempcomp.store"], out
+    assert out.split("LOADED ", 1)[1].split() == ["tempcomp", "tempcomp.store", "tempcomp.store_format"], out
+
+
+@pytest.mark.parametrize("interp", ["an385"], indirect=True)
+def test_the_driver_boot_loads_the_bottom_layers_it_needs_and_no_more(interp):
+    # the registers boot (docs/ram.md): the driver with the I2C adapter and the parts table; the
+    # capture, the offset registers' units, the SPI adapter and the temperature model load on use
+    out = interp.run("import sys\n"
+                     "from tools.sim import mpu6xxx_sim\n"
+                     "from tools.sim.buses import SimI2C\n"
+                     "mpu6xxx_sim._NOISE_N = 256\n"
+                     "from tempcomp.mpu6xxx import MPU6xxx\n"
+                     "imu = MPU6xxx(SimI2C({0x68: mpu6xxx_sim.MPU6xxxSim('MPU-6500', seed=3)}))\n"
+                     "imu.apply((1, 2, 3), imu.factory)\n"
+                     "imu.check()\n"
+                     "print('LOADED', ' '.join(sorted(m for m in sys.modules if m.startswith('tempcomp'))))\n",
+                     mounts=(os.path.join(REPO, "tools", "sim") + ":/tools/sim",), paths=("/",))
+    assert out.split("LOADED ", 1)[1].split() == [
+        "tempcomp", "tempcomp.bus", "tempcomp.mpu6xxx", "tempcomp.mpu6xxx_parts"], out

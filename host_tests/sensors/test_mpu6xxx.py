@@ -14,7 +14,8 @@ import warnings
 import pytest
 import seeds
 
-from tempcomp.mpu6xxx import MIN_PACKETS, MPU6xxx, MPUError
+from tempcomp.mpu6xxx import MPU6xxx, MPUError
+from tempcomp.mpu6xxx_cal import MIN_PACKETS
 from tempcomp.mpu6xxx_tc import BiasModel, merge_points
 from tools.sim.buses import SimI2C
 from tools.sim.mpu6xxx_sim import FACES, MPU6xxxSim

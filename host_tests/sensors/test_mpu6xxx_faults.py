@@ -17,7 +17,8 @@ import pytest
 import seeds
 
 from tempcomp import mpu6xxx_cal as cal
-from tempcomp.mpu6xxx import MIN_PACKETS, MPU6xxx, MPUError
+from tempcomp.mpu6xxx import MPU6xxx, MPUError
+from tempcomp.mpu6xxx_cal import MIN_PACKETS
 from tools.sim.buses import GARBLES, SimI2C
 from tools.sim.mpu6xxx_sim import FACES, MPU6xxxSim
 

@@ -7,7 +7,9 @@ import pytest
 from storecut import FakeNvm, ram_dir
 
 from tempcomp import store as st
-from tempcomp import store_write
+from tempcomp import store_format
+from tempcomp.store_check import parse
+from tempcomp.store_encode import encode
 
 OLD = (10, -20, 30, 2**31 - 1)
 NEW = (11, -21, 31, -(2**31))
@@ -42,10 +44,10 @@ def _put(p, data):
 
 def test_every_bit_flip_detected_by_the_parser(tmp_path):
     cur, _ = _two_generations(str(tmp_path / "cal.bin"))
-    assert st._parse(cur, False)[0] == st._OK
+    assert parse(cur, False)[0] == store_format.OK
     for bit in range(8 * len(cur)):
-        state, why, _, _ = st._parse(_flip(cur, bit), False)
-        assert state in (st._DAMAGED, st._FOREIGN), (bit, state)
+        state, why, _, _ = parse(_flip(cur, bit), False)
+        assert state in (store_format.DAMAGED, store_format.FOREIGN), (bit, state)
         assert why
 
 
@@ -111,7 +113,7 @@ def test_nvm_flip_in_either_slot():
     s.save("g", OLD)  # slot A, generation 1
     s.save("g", NEW)  # slot B, generation 2
     good = bytes(nvm.b)
-    n = len(store_write._encode(2, [st.Record("g", NEW, [0] * 4)]))
+    n = len(encode(2, [st.Record("g", NEW, [0] * 4)]))
     for slot, expect in ((256, OLD), (0, NEW)):
         for bit in range(8 * n):
             nvm.b[:] = _flip(good, 8 * slot + bit)

@@ -17,7 +17,8 @@ import seeds
 from paths import REPO
 
 from tempcomp import store as st
-from tempcomp.store_check import crc_bitwise
+from tempcomp.store_check import parse
+from tempcomp.store_crc import crc32 as crc_bitwise
 from tools.board import storetool
 
 DOC = os.path.join(REPO, "docs", "store.md")
@@ -250,6 +251,25 @@ def test_the_host_codec_writes_and_reads_the_documented_layout(seed):
     assert storetool.encode_image(json.loads(storetool.to_json(doc))) == data
 
 
+@pytest.mark.parametrize("seed", seeds.seeds("store_format_codec", 3))
+def test_the_device_codec_writes_and_reads_the_documented_layout(seed):
+    # tempcomp.store_encode.encode and tempcomp.store_format.decode, what Store stands on
+    from array import array
+
+    from tempcomp.store_encode import encode
+    from tempcomp.store_format import Record, decode
+
+    recs = _random_records(random.Random(seed), 6)
+    data = LAYOUT.encode(7, [dict(r, counter=min(r["counter"], 7)) for r in recs])
+    objs = [Record(r["name"], array("i", r["values"]), array("b", r["frac"]), r["part"], r["serial"], r["kind"],
+                   r["t_lo"], r["t_hi"], r["t_unit"], min(r["counter"], 7), r["time"]) for r in recs]
+    assert bytes(encode(7, objs)) == data
+    gen, back = decode(data)
+    assert gen == 7
+    assert [{k: (list(getattr(b, k)) if k in ("values", "frac") else getattr(b, k)) for k in FIELDS} for b in back] == [
+        dict(r, counter=min(r["counter"], 7)) for r in recs]
+
+
 def test_the_layout_comes_from_the_page():
     # the codec above reads the page: a page with two fields swapped, or without the padding,
     # describes other bytes than the store writes (so an edit of the table fails these tests)
@@ -275,13 +295,19 @@ def test_readme_shows_the_same_tables():
 
 
 def test_kinds_and_temperature_units_are_the_pages():
+    # the page's kinds table and t_unit list are the store's constants (store.KIND_*, store.T_*:
+    # module attributes, some loaded on first use) and the host codec's names, in order
     kinds = [t for t in _tables(LAYOUT.text, "Kinds (") if t and t[0][1].startswith("`KIND_")][0]
-    assert [(int(n), c.strip("`")) for n, c, _ in kinds] == sorted(
-        (getattr(st, c), c) for c in dir(st) if c.startswith("KIND_"))
-    units = dict((c, int(n)) for c, n in re.findall(r"`(T_[A-Z_]+)` (\d+)", LAYOUT.text))
-    assert units == {c: getattr(st, c) for c in dir(st) if c.startswith("T_") and c[2:].isupper()}
-    assert [u for u, _ in sorted(units.items(), key=lambda kv: kv[1])] == ["T_" + n.upper().replace("CENTI_DEGC", "CENTI_C")
-                                                                          for n in storetool.T_UNITS]
+    assert [int(n) for n, _, _ in kinds] == list(range(len(kinds)))
+    for n, c, _ in kinds:
+        assert getattr(st, c.strip("`")) == int(n), c
+    assert len(kinds) == len(storetool.KINDS)
+    units = [(c, int(n)) for c, n in re.findall(r"`(T_[A-Z_]+)` (\d+)", LAYOUT.text)]
+    units = list(dict(units).items())
+    assert [n for _, n in units] == list(range(len(units)))
+    for c, n in units:
+        assert getattr(st, c) == n, c
+    assert [c for c, _ in units] == ["T_" + n.upper().replace("CENTI_DEGC", "CENTI_C") for n in storetool.T_UNITS]
 
 
 E1 = dict(kind=2, t_unit=1, name="gyro0", part="MPU6050", serial="S1", t_lo=-100, t_hi=2500,
@@ -433,6 +459,6 @@ def test_malformed_entry_is_named_in_words(tmp_path, change, words):
         assert s.load("gyro0") == (1, -2)
     assert len(s.warnings) == 1
     assert s.warnings[0].startswith(p + " " + words + "; using %s.old (generation 1)" % p), s.warnings
-    assert st._parse(_image(1, [bad]), False)[1] == words
+    assert parse(_image(1, [bad]), False)[1] == words
     # two entries of one name
-    assert st._parse(_image(2, [E1, E1]), False)[1] == "is malformed: entry 1: name 'gyro0' appears twice"
+    assert parse(_image(2, [E1, E1]), False)[1] == "is malformed: entry 1: name 'gyro0' appears twice"

@@ -6,6 +6,7 @@ import pytest
 from storecut import FakeNvm, ram_dir
 
 from tempcomp import store as st
+from tempcomp.store_check import parse
 
 pytestmark = pytest.mark.filterwarnings("ignore::tempcomp.store.StoreWarning")
 
@@ -72,7 +73,7 @@ def test_nvm_slots_too():
     _two_saves(st.Store(nvm=nvm))
     a = bytes(nvm[0:512])
     b = bytes(nvm[512:1024])
-    newest = 512 if st._parse(b, True)[2] > st._parse(a, True)[2] else 0
+    newest = 512 if parse(b, True)[2] > parse(a, True)[2] else 0
     nvm[newest + 40] ^= 0x10
     s = st.Store(nvm=nvm)
     assert s.load("gyro") == (1, 2, 3)

@@ -8,7 +8,7 @@ import pytest
 from storecut import FakeNvm, Medium, PowerCut, ram_dir
 
 from tempcomp import store as st
-from tempcomp import store_write
+from tempcomp.store_encode import encode
 
 pytestmark = pytest.mark.filterwarnings("ignore::tempcomp.store.StoreWarning")
 
@@ -195,7 +195,7 @@ def _nvm_state(name):
 @pytest.mark.parametrize("scenario", NVM_SCENARIOS)
 def test_nvm_torn_write_at_every_byte(scenario):
     nvm0, before = _nvm_state(scenario)
-    n_image = len(store_write._encode(1, [st.Record("g", NEW, [0] * 12)]))
+    n_image = len(encode(1, [st.Record("g", NEW, [0] * 12)]))
     for tail in ("old", "ff"):
         for k in range(n_image + 1):
             nvm = FakeNvm(1024)

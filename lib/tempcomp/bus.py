@@ -1,18 +1,18 @@
-"""One thin bus adapter so drivers never care which port they run on.
+"""Thin bus adapters so drivers never care which port they run on: I2C here, SPI in
+``tempcomp.bus_spi`` (which stands on this module's ``lock``), so a board whose sensors are all on
+I2C never loads the SPI adapter (docs/ram.md).
 
 MicroPython's ``machine.I2C`` has ``readfrom_mem_into``/``writeto_mem``; CircuitPython's and
 Blinka's ``busio.I2C`` have only ``writeto``/``writeto_then_readfrom`` and need ``try_lock()``.
-The right methods are bound once in ``__init__``; after that a register read or an SPI
-exchange allocates nothing (buffers are the caller's or preallocated here).
+The right methods are bound once in ``__init__``; after that a register read allocates nothing
+(buffers are the caller's or preallocated here).
 
 Usage::
 
-    from tempcomp.bus import I2CDevice, SPIDevice
+    from tempcomp.bus import I2CDevice
     dev = I2CDevice(i2c, 0x68)
     dev.read_into(0x75, buf1)          # WHO_AM_I into a 1-byte bytearray
     dev.write(0x13, b"\\x00\\x10")
-    spi_dev = SPIDevice(spi, cs_pin)   # machine.Pin or digitalio.DigitalInOut
-    spi_dev.exchange(out3, in3)        # CS low, full-duplex transfer, CS high
 
 Errors: bus faults propagate as ``OSError`` (as both ports raise them); a bus that stays
 locked by someone else raises ``OSError`` naming the bus after a bounded wait.
@@ -30,7 +30,8 @@ _LOCK_TRIES = const(10000)
 _MAX_WRITE = const(32)
 
 
-def _lock(bus):
+def lock(bus):
+    """Take a CircuitPython/Blinka bus's lock, waiting a bounded time (OSError naming the bus)."""
     n = 0
     while not bus.try_lock():
         n += 1
@@ -65,7 +66,7 @@ class I2CDevice:
 
     def _cp_read_into(self, reg, buf):
         self._reg[0] = reg
-        _lock(self.bus)
+        lock(self.bus)
         try:
             self.bus.writeto_then_readfrom(self.address, self._reg, buf)
         finally:
@@ -78,7 +79,7 @@ class I2CDevice:
         w = self._wbuf
         w[0] = reg
         w[1 : n + 1] = buf
-        _lock(self.bus)
+        lock(self.bus)
         try:
             self.bus.writeto(self.address, w, end=n + 1)
         finally:
@@ -89,56 +90,3 @@ class I2CDevice:
         r = self._reg
         self.read_into(reg, r)
         return r[0]
-
-
-class SPIDevice:
-    """Chip-select framed full-duplex exchanges on a machine.SPI or busio.SPI bus.
-
-    cs: a MicroPython ``machine.Pin`` (configured as output) or a CircuitPython
-    ``digitalio.DigitalInOut``. On CircuitPython the bus is locked and configured with
-    baudrate/polarity/phase for every exchange, as its design guide asks; on MicroPython the
-    caller creates the SPI with those settings.
-    """
-
-    def __init__(self, bus, cs, baudrate=1000000, polarity=1, phase=1):
-        self.bus = bus
-        self.cs = cs
-        self.baudrate = baudrate
-        self.polarity = polarity
-        self.phase = phase
-        self._cp = hasattr(bus, "try_lock")
-        if hasattr(cs, "switch_to_output"):  # digitalio.DigitalInOut
-            cs.switch_to_output(value=True)
-            self._select = self._dio_select
-        elif hasattr(cs, "value") and callable(cs.value):  # machine.Pin
-            cs.value(1)
-            self._select = self._pin_select
-        else:
-            raise TypeError("chip select %r is neither machine.Pin nor digitalio.DigitalInOut" % (cs,))
-
-    def _pin_select(self, level):
-        self.cs.value(level)
-
-    def _dio_select(self, level):
-        self.cs.value = bool(level)
-
-    def exchange(self, out, into):
-        """Send out while receiving into (same length) with CS held low."""
-        bus = self.bus
-        if self._cp:
-            _lock(bus)
-            try:
-                bus.configure(baudrate=self.baudrate, polarity=self.polarity, phase=self.phase)
-                self._select(0)
-                try:
-                    bus.write_readinto(out, into)
-                finally:
-                    self._select(1)
-            finally:
-                bus.unlock()
-        else:
-            self._select(0)
-            try:
-                bus.write_readinto(out, into)
-            finally:
-                self._select(1)

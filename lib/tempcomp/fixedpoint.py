@@ -1021,3 +1021,11 @@ def _gain_num(e, d):
     if e <= _VALUE_BITS:
         return div_pow2(1 << e, 0, d)
     return div_pow2(1 << _VALUE_BITS, e - _VALUE_BITS, d)
+
+
+# The exact-coefficient helpers, public for the modules that hand this one (num, den) pairs
+# (tempcomp.mpu6xxx_tc's exact fit): a float's exact ratio, the gcd that reduces a pair, and a
+# pair's float value. (Names given here, at the end, so the definitions above stay as they are.)
+ratio = _ratio
+gcd = _gcd
+to_float = _fl

@@ -42,8 +42,13 @@ except ImportError:
         return x
 
 
-from tempcomp.bus import SPIDevice
+# fixedpoint first: from .py, its compile (the largest source) needs blocks of ~2 KB, and on the
+# 140 KB Cortex-M3 heap it found none once the two bus adapters were compiled before it
+# (MemoryError; docs/ram.md, host_tests/interp/test_ram.py)
 from tempcomp.fixedpoint import EXTRAPOLATE, Compensator, quadratic_through
+
+# isort: split
+from tempcomp.bus_spi import SPIDevice
 
 # --- EEPROM map, AN2 figure 3 and sections 3.1-3.4 (first cell of a field holds its LSB) ---
 CELLS = const(128)

@@ -28,6 +28,12 @@ by themselves (ICM-20602).
 Heap: this module holds what every boot needs (restore, check, compensated reads); the FIFO
 capture behind ``calibrate()``/``bias_point()`` lives in ``tempcomp.mpu6xxx_cal`` and is loaded
 by the first capture only (docs/ram.md).
+
+The top of the family (README "Layers"): it stands on ``tempcomp.bus`` and
+``tempcomp.mpu6xxx_parts``, and hands ``tempcomp.mpu6xxx_cal`` (the capture),
+``tempcomp.mpu6xxx_rt`` (offset(T) resumed from a record) and a ``BiasModel``
+(``tempcomp.mpu6xxx_tc``) what they need - its bus device, its part's row, the offsets and
+ranges it read - then applies what they compute. None of them calls back into it.
 """
 
 import time as _time
@@ -37,14 +43,17 @@ from tempcomp.mpu6xxx_parts import (
     ACCEL_OFFS,
     ACCEL_STRIDE,
     NAME,
+    TEMP_OUT_H,
     TEMP_SENS,
     TEMP_ZERO,
     WHO_AM_I,
-    ZRO_DPS,
-    ZRO_SPAN_DPS,
+    MPUError,
     by_name,
     by_who_am_i,
+    celsius100,
     names,
+    warn,
+    zro_limit,
 )
 
 try:
@@ -53,14 +62,6 @@ except ImportError:
 
     def const(x):
         return x
-
-
-try:
-    from warnings import warn as _warn  # pyright: ignore[reportMissingImports]
-except ImportError:
-
-    def _warn(msg):
-        print("tempcomp.mpu6xxx warning:", msg)
 
 
 # a millisecond clock for check(every_ms=): MicroPython's ticks, CircuitPython's supervisor
@@ -87,35 +88,21 @@ def _ticks_diff(a, b):
     return a - b
 
 
-# Register map (RM-MPU-6000A / RM-MPU-9250); the capture's registers are in mpu6xxx_cal
+# Register map (RM-MPU-6000A / RM-MPU-9250): the registers only the driver uses; the capture's
+# are in mpu6xxx_cal, TEMP_OUT_H (both read it) in mpu6xxx_parts
 _XG_OFFS_USRH = const(0x13)  # gyro X/Y/Z offsets at 0x13, 0x15, 0x17 (high byte first)
 _GYRO_CONFIG = const(0x1B)
 _ACCEL_CONFIG = const(0x1C)
 _ACCEL_XOUT_H = const(0x3B)  # 14 bytes: accel x y z, temperature, gyro x y z
-_TEMP_OUT_H = const(0x41)
-_USER_CTRL = const(0x6A)  # followed by PWR_MGMT_1, PWR_MGMT_2
+_PWR_MGMT_1 = const(0x6B)
 _WHO_AM_I = const(0x75)
 
-_GYRO_LSB_DPS = const(131)  # +-250 dps: 131 LSB/dps
-_ACCEL_LSB_G = const(16384)  # +-2 g
-_GYRO_STEP = const(4)  # one +-1000 dps register LSB = 4 output LSB at +-250 dps
-_ACCEL_STEP = const(8)  # one 2048 LSB/g word LSB = 8 output LSB at +-2 g
-
-MIN_PACKETS = const(20)
-# |sum| <= 32768 * 16000 < 2**29 and |sum - 16384 * packets| < 2**30: small ints on 32-bit
-# MicroPython, and no long ints at all on CircuitPython builds without them
-MAX_PACKETS = const(16000)
 _RETRIES = const(3)
-_T_QUANT = const(8)  # per-sample temperature compensation steps of 8 LSB (~0.024 degC)
-_T_MASK = const(-8)  # t & _T_MASK == t - t % _T_QUANT
+_T_MASK = const(-8)  # per-sample compensation steps of 8 LSB (~0.024 degC): t & _T_MASK == t - t % 8
 # read_compensated's temperature block in one int: (sum of readings) * 128 + readings still to
 # come, so temp_avg < 128; |sum| < 127 * 2**15 < 2**22, so |state| < 2**29 stays a small int
 _T_CNT = const(127)
 _READS = const(4)  # offsets are re-read until two reads agree, this many times at most
-
-
-class MPUError(OSError):
-    """A bus fault, a read-back mismatch or an unusable capture on an MPU-6xxx part."""
 
 
 def _s16(hi, lo):
@@ -123,12 +110,6 @@ def _s16(hi, lo):
     if v & 0x8000:
         v -= 0x10000
     return v
-
-
-def _rdiv(num, den):
-    # num / den rounded half up, exactly, for den > 0; intermediates no larger than num
-    q, r = divmod(num, den)
-    return q + 1 if 2 * r >= den else q
 
 
 class MPU6xxx:
@@ -152,7 +133,7 @@ class MPU6xxx:
             if row is None:
                 raise ValueError("unknown part %r; known: %s" % (part, ", ".join(names())))
             if row[WHO_AM_I] != who:
-                _warn(
+                warn(
                     "part at 0x%02x answers WHO_AM_I 0x%02x, not 0x%02x: driving it with the %s "
                     "layout as asked" % (address, who, row[WHO_AM_I], row[NAME])
                 )
@@ -308,10 +289,7 @@ class MPU6xxx:
         """The gyro bias (deg/s) this part may have at rest at TEMP_OUT reading t_raw (default:
         read now, the part awake): its datasheet initial tolerance plus the variation over
         temperature away from 25 degC (mpu6xxx_parts ZRO_DPS, ZRO_SPAN_DPS)."""
-        row = self._row
-        dt = abs(self.temp_c100(t_raw) - 2500) / 100.0
-        return row[ZRO_DPS] + row[ZRO_SPAN_DPS] * dt / 60.0  # the span covers 25 -> -40/+85 degC
-
+        return zro_limit(self._row, self.temp_c100(t_raw))
 
     def _cal(self):
         # The capture machinery (FIFO buffers, sums, checks) is loaded on the first capture:
@@ -320,8 +298,20 @@ class MPU6xxx:
         if c is None:
             from tempcomp.mpu6xxx_cal import Capture
 
-            c = self._capture = Capture(self)
+            c = self._capture = Capture(self._dev, self._row)
         return c
+
+    def _captured(self, packets, settle_ms):
+        # -> (capture, temperature, offsets held). The offsets must not change during the capture
+        # (an ICM-20602 rewriting its trim mid-capture would mix two biases).
+        c = self._cal()
+        cur = self._read_offsets()
+        t = c.capture(packets, settle_ms)
+        now = self._read_offsets()
+        if now != cur:
+            self.trim_changes += 1
+            raise c.trim_changed(cur, now)
+        return c, t, cur
 
     def calibrate(self, packets=1000, settle_ms=50, gyro_spread_dps=5, accel_spread_mg=150, max_tilt_mg=150,
                   max_bias_dps=None, max_turn_dps=1):
@@ -334,8 +324,12 @@ class MPU6xxx:
         a read was implausible, or the bus failed: the previous offsets and the sensor
         configuration are then left in place. (Code in tempcomp.mpu6xxx_cal, loaded now.)
         """
-        return self._cal().calibrate(packets, settle_ms, gyro_spread_dps, accel_spread_mg, max_tilt_mg,
-                                     max_bias_dps, max_turn_dps)
+        c, t, cur = self._captured(packets, settle_ms)
+        words = c.calibrate(cur, self.factory, t, gyro_spread_dps, accel_spread_mg, max_tilt_mg, max_bias_dps,
+                            max_turn_dps)
+        self._write_offsets(words)
+        self._target = words
+        return (tuple(words[:3]), tuple(words[3:]))
 
     def bias_point(self, packets=1000, settle_ms=50, gyro_spread_dps=5, accel_spread_mg=150, max_tilt_mg=150,
                    max_bias_dps=None, max_turn_dps=1):
@@ -346,23 +340,22 @@ class MPU6xxx:
         Collect points at several temperatures for ``tempcomp.mpu6xxx_tc.BiasModel``. The
         capture is checked as calibrate() checks it.
         """
-        return self._cal().bias_point(packets, settle_ms, gyro_spread_dps, accel_spread_mg, max_tilt_mg,
-                                      max_bias_dps, max_turn_dps)
+        c, t, cur = self._captured(packets, settle_ms)
+        return c.bias_point(cur, self.factory, t, gyro_spread_dps, accel_spread_mg, max_tilt_mg, max_bias_dps,
+                            max_turn_dps)
 
     # ---- data ----------------------------------------------------------------------------
     def temp_raw(self):
         """TEMP_OUT as a signed integer (the reading offset(T) polynomials use)."""
         b = self._b2
-        self._dev.read_into(_TEMP_OUT_H, b)
+        self._dev.read_into(TEMP_OUT_H, b)
         return _s16(b[0], b[1])
 
     def temp_c100(self, raw=None):
         """Temperature in hundredths of a degC (allocation-free when read from the part)."""
         if raw is None:
             raw = self.temp_raw()
-        sens = self._row[TEMP_SENS]
-        # |2 * raw * 10000| <= 6.6e8 < 2**30
-        return (raw * 20000 + sens) // (2 * sens) + self._row[TEMP_ZERO]
+        return celsius100(self._row, raw)
 
     def read_raw(self, out):
         """Data registers into out[0..6]: accel x y z, temperature, gyro x y z (raw codes)."""
@@ -406,12 +399,16 @@ class MPU6xxx:
         set-up computed at calibration, and ``check`` the ``mpu_tc`` record it was built from:
         a boot then loads no fixed-point set-up code (``tempcomp.mpu6xxx_rt``, docs/ram.md).
         """
-        # imported here: a board that never compensates never loads either
-        if hasattr(model, "offset_poly"):
-            from tempcomp.mpu6xxx_tc import compensate
+        ranges = self.ranges()
+        offs = self._read_offsets()
+        if hasattr(model, "compensators"):
+            ca, cg = model.compensators(ranges, offs)  # the model's fixed-point set-up
         else:
-            from tempcomp.mpu6xxx_rt import resume as compensate
-        compensate(self, model, check)
+            # imported here: a board that never compensates never loads it
+            from tempcomp.mpu6xxx_rt import resume
+
+            ca, cg = resume(model, check, ranges, offs)
+        self._comp_set(ca, cg)
 
     def _comp_set(self, ca, cg):
         # the Compensators read_compensated() uses; its temperature block starts again, so the
@@ -480,12 +477,18 @@ class MPU6xxx:
         """Hardware offset(T): re-write the offsets when the temperature moved by step_c100.
 
         Call it periodically with the part awake (asleep, TEMP_OUT does not update); returns
-        True when it wrote (verified, all-or-nothing). (Code in tempcomp.mpu6xxx_tc, the
-        module of ``model``.)
+        True when it wrote (verified, all-or-nothing) what ``model.registers(t)`` gives.
         """
-        from tempcomp.mpu6xxx_tc import follow
-
-        return follow(self, model, step_c100)
+        if self._dev.read_u8(_PWR_MGMT_1) & 0x40:  # SLEEP (RM-MPU-6000A 4.28)
+            raise MPUError("the part is asleep (PWR_MGMT_1.SLEEP): its temperature is stale")
+        t = self.temp_raw()
+        last = self._follow_t
+        if last is not None and abs(t - last) < step_c100 * self._tsens // 10000:
+            return False
+        g, a = model.registers(t)
+        self.apply(g, a)
+        self._follow_t = t
+        return True
 
     # ---- persistence --------------------------------------------------------------------------
     def to_ints(self):
@@ -517,11 +520,11 @@ class MPU6xxx:
                 # the known fault: the part rewrote its Y trim (now, or when the record was
                 # made). The saved offsets are absolute words, right whatever the register held.
                 self.trim_changes += 1
-                _warn("ICM-20602 accel y trim reads %d, saved factory value %d: the part changed it by "
-                      "itself (a known ICM-20602 fault); the saved offsets are written back, call "
-                      "check(every_ms=1000) from your loop to keep them" % (self.factory[1], fac[1]))
+                warn("ICM-20602 accel y trim reads %d, saved factory value %d: the part changed it by "
+                     "itself (a known ICM-20602 fault); the saved offsets are written back, call "
+                     "check(every_ms=1000) from your loop to keep them" % (self.factory[1], fac[1]))
             else:
-                _warn("factory trim %r differs from the saved %r: a different part?" % (self.factory, fac))
+                warn("factory trim %r differs from the saved %r: a different part?" % (self.factory, fac))
         return self.apply(ints[1:4], ints[4:7])
 
     def save(self, store, name="mpu6xxx"):
@@ -538,21 +541,6 @@ class MPU6xxx:
         out = self.apply_ints(store.load(name))
         self._checked = _ticks_ms()
         return out
-
-
-def _clamp_gyro(axis, v):
-    if -32768 <= v <= 32767:
-        return v
-    _warn("gyro %s offset %d clamped to the int16 register" % ("xyz"[axis], v))
-    return -32768 if v < 0 else 32767
-
-
-def _clamp_accel15(axis, t15):
-    # bits 15..1 of the accel word: a signed 15-bit field
-    if -16384 <= t15 <= 16383:
-        return t15
-    _warn("accel %s offset %d clamped to the 15-bit field" % ("xyz"[axis], t15 * 2))
-    return -16384 if t15 < 0 else 16383
 
 
 def _check3(what, v):

@@ -1,22 +1,38 @@
-"""Calibration captures of an MPU-6xxx: FIFO capture at rest, its checks, the offsets it writes.
+"""Calibration captures of an MPU-6xxx: FIFO capture at rest, its checks, the offsets it computes.
 
 Loaded on first use by ``MPU6xxx.calibrate()`` and ``MPU6xxx.bias_point()``, never at boot: a
 board that only restores its offsets and reads compensated samples (``tempcomp.mpu6xxx``)
 keeps this code and the capture buffers off its heap (docs/ram.md has the figures). Use the
 methods of ``tempcomp.mpu6xxx.MPU6xxx``; ``Capture`` is its helper, one per part.
+
+Beside the driver, below it: it stands on ``tempcomp.mpu6xxx_parts`` and
+``tempcomp.mpu6xxx_units`` alone. The driver hands it
+its bus device and part row, reads the offset registers before and after a capture, hands over
+what they hold and the factory trim, and writes (verified) the offsets computed here.
 """
 
 from array import array
 
-from tempcomp.mpu6xxx import (
-    MAX_PACKETS,
-    MIN_PACKETS,
+from tempcomp.mpu6xxx_parts import (
+    ACCEL_CONFIG2,
+    FIFO_EN_BITS,
+    FIFO_SIZE,
+    GYRO_AT,
+    NAME,
+    PACKET,
+    TEMP_OUT_H,
     MPUError,
-    _clamp_accel15,
-    _clamp_gyro,
-    _rdiv,
+    celsius100,
+    zro_limit,
 )
-from tempcomp.mpu6xxx_parts import ACCEL_CONFIG2, FIFO_EN_BITS, FIFO_SIZE, GYRO_AT, PACKET
+from tempcomp.mpu6xxx_units import (
+    ACCEL_LSB_G,
+    ACCEL_STEP,
+    GYRO_LSB_DPS,
+    GYRO_STEP,
+    clamp_accel15,
+    clamp_gyro,
+)
 
 try:
     from micropython import const
@@ -26,7 +42,12 @@ except ImportError:
         return x
 
 
-# Register map (RM-MPU-6000A / RM-MPU-9250)
+MIN_PACKETS = const(20)
+# |sum| <= 32768 * 16000 < 2**29 and |sum - 16384 * packets| < 2**30: small ints on 32-bit
+# MicroPython, and no long ints at all on CircuitPython builds without them
+MAX_PACKETS = const(16000)
+
+# Register map (RM-MPU-6000A / RM-MPU-9250): the registers only the capture uses
 _SMPLRT_DIV = const(0x19)  # followed by CONFIG, GYRO_CONFIG, ACCEL_CONFIG, ACCEL_CONFIG2
 _FIFO_EN = const(0x23)
 _INT_ENABLE = const(0x38)
@@ -41,10 +62,6 @@ _PWR_PLL = const(0x01)  # awake, gyro PLL clock, temperature sensor on
 _CAL_CONFIG = const(0x01)  # DLPF_CFG 1 (188/184 Hz): 1 kHz internal rate; SMPLRT_DIV 0 keeps it
 _CAL_ACCEL2 = const(0x01)  # MPU-6500 family A_DLPF_CFG 1: accel at 1 kHz, 184 Hz
 
-_GYRO_LSB_DPS = const(131)  # +-250 dps: 131 LSB/dps
-_ACCEL_LSB_G = const(16384)  # +-2 g
-_GYRO_STEP = const(4)  # one +-1000 dps register LSB = 4 output LSB at +-250 dps
-_ACCEL_STEP = const(8)  # one 2048 LSB/g word LSB = 8 output LSB at +-2 g
 
 _BATCH = const(16)  # packets per FIFO read: 224 bytes at most
 _MAX_IDLE = const(5000)  # FIFO_COUNT polls without a new packet before giving up
@@ -61,16 +78,22 @@ _OUTLIER_RATIO = const(4)
 _OUTLIER_FLOOR = const(16)
 
 
-class Capture:
-    """The capture state of one MPU6xxx ``m``: FIFO buffers, sums, min/max, configuration."""
+def _rdiv(num, den):
+    # num / den rounded half up, exactly, for den > 0; intermediates no larger than num
+    q, r = divmod(num, den)
+    return q + 1 if 2 * r >= den else q
 
-    def __init__(self, m):
-        self.m = m
-        row = m._row
-        self._dev = m._dev
+
+class Capture:
+    """The capture state of one part, on bus device ``dev`` (tempcomp.bus.I2CDevice) with the
+    parts-table ``row``: FIFO buffers, sums, min/max, configuration."""
+
+    def __init__(self, dev, row):
+        self._dev = dev
         self._row = row
-        self._b2 = m._b2
-        self._w2 = m._w2
+        self._b2 = bytearray(2)
+        self._w2 = bytearray(2)
+        self._w1 = bytearray(1)
         self._pkt = row[PACKET]
         self._gyro_at = row[GYRO_AT]
         self._fifo_limit = row[FIFO_SIZE] - 2 * row[PACKET]
@@ -93,6 +116,10 @@ class Capture:
         self._settle = 0
         self._idle = 0
         self._resets = 0
+
+    def _write_u8(self, reg, v):
+        self._w1[0] = v
+        self._dev.write(reg, self._w1)
 
     def _read_config(self):
         d = self._dev
@@ -117,12 +144,12 @@ class Capture:
         cfg, ctl, fifo_en, int_en = saved
         d = self._dev
         n = self._ncfg
-        self.m._write_u8(_FIFO_EN, 0)
-        self.m._write_u8(_USER_CTRL, _USER_FIFO_RST)  # drop our packets from the FIFO
+        self._write_u8(_FIFO_EN, 0)
+        self._write_u8(_USER_CTRL, _USER_FIFO_RST)  # drop our packets from the FIFO
         d.write(_SMPLRT_DIV, cfg[:n])
-        self.m._write_u8(_FIFO_EN, fifo_en)
-        self.m._write_u8(_INT_ENABLE, int_en)
-        self.m._write_u8(_USER_CTRL, ctl[0] & ~_USER_RESETS)
+        self._write_u8(_FIFO_EN, fifo_en)
+        self._write_u8(_INT_ENABLE, int_en)
+        self._write_u8(_USER_CTRL, ctl[0] & ~_USER_RESETS)
         d.write(_USER_CTRL + 1, ctl[1:3])  # power management last: it may put the part to sleep
         chk = memoryview(self._chk)
         d.read_into(_SMPLRT_DIV, chk[:n])
@@ -148,15 +175,15 @@ class Capture:
         self._w2[0] = _PWR_PLL
         self._w2[1] = 0
         d.write(_USER_CTRL + 1, self._w2)  # PWR_MGMT_1 awake on the PLL, PWR_MGMT_2 all axes on
-        self.m._write_u8(_INT_ENABLE, 0)
-        self.m._write_u8(_FIFO_EN, 0)
-        self.m._write_u8(_USER_CTRL, _USER_FIFO_RST)  # FIFO off and empty, I2C master off
+        self._write_u8(_INT_ENABLE, 0)
+        self._write_u8(_FIFO_EN, 0)
+        self._write_u8(_USER_CTRL, _USER_FIFO_RST)  # FIFO off and empty, I2C master off
         cfg = bytearray(5)  # SMPLRT_DIV 0, CONFIG, GYRO_CONFIG +-250 dps, ACCEL_CONFIG +-2 g
         cfg[1] = _CAL_CONFIG
         cfg[4] = _CAL_ACCEL2
         d.write(_SMPLRT_DIV, cfg[: self._ncfg])
-        self.m._write_u8(_USER_CTRL, _USER_FIFO_EN)
-        self.m._write_u8(_FIFO_EN, self._row[FIFO_EN_BITS])
+        self._write_u8(_USER_CTRL, _USER_FIFO_EN)
+        self._write_u8(_FIFO_EN, self._row[FIFO_EN_BITS])
 
     def _begin(self, packets, settle):
         s = self._sum
@@ -187,7 +214,7 @@ class Capture:
             self._resets += 1
             if self._resets > _MAX_RESETS:
                 raise MPUError("FIFO overflowed %d times: read it faster (bus too slow?)" % self._resets)
-            self.m._write_u8(_USER_CTRL, _USER_FIFO_EN | _USER_FIFO_RST)
+            self._write_u8(_USER_CTRL, _USER_FIFO_EN | _USER_FIFO_RST)
             return 0
         pkt = self._pkt
         k = c // pkt
@@ -243,7 +270,9 @@ class Capture:
             p += pkt
         self._n += k - first
 
-    def _capture(self, packets, settle_ms):
+    def capture(self, packets, settle_ms):
+        """Capture ``packets`` samples at rest (1 kHz) after settle_ms; the part's configuration is
+        given back after it. Returns the temperature reading (two reads that agree)."""
         if not MIN_PACKETS <= packets <= MAX_PACKETS:
             raise ValueError("packets must be %d..%d, got %r" % (MIN_PACKETS, MAX_PACKETS, packets))
         if not 0 <= settle_ms <= 1000:
@@ -277,17 +306,22 @@ class Capture:
             self._sum1[j] = self._sum[j]
         self._n1 = self._n
 
+    def _temp_raw(self):
+        b = self._b2
+        self._dev.read_into(TEMP_OUT_H, b)
+        v = b[0] << 8 | b[1]
+        return v - 0x10000 if v & 0x8000 else v
+
     def _temp_agreed(self):
-        a = self.m.temp_raw()
+        a = self._temp_raw()
         for _ in range(_READS):
-            b = self.m.temp_raw()
+            b = self._temp_raw()
             if -_T_AGREE <= b - a <= _T_AGREE:
                 return b
             a = b
         raise MPUError("TEMP_OUT read differently %d times in a row (bus noise?)" % (_READS + 1))
 
-    def _analyse(self, cur, gyro_spread_dps, accel_spread_mg, max_tilt_mg, t=None, max_bias_dps=None,
-                 max_turn_dps=1):
+    def _analyse(self, cur, factory, t, gyro_spread_dps, accel_spread_mg, max_tilt_mg, max_bias_dps, max_turn_dps):
         # -> (gravity axis, its expected output at +-2 g); raises on an unusable capture.
         # Gravity and tilt are judged on what the part reads with its factory trim, so
         # offsets written earlier (even far off) don't hide the face it lies on.
@@ -303,11 +337,11 @@ class Capture:
         for j in range(6):
             spread = self._max[j] - self._min[j]
             if j < 3:
-                lim = accel_spread_mg * _ACCEL_LSB_G // 1000
-                shown, unit, limit = spread * 1000 // _ACCEL_LSB_G, "mg", accel_spread_mg
+                lim = accel_spread_mg * ACCEL_LSB_G // 1000
+                shown, unit, limit = spread * 1000 // ACCEL_LSB_G, "mg", accel_spread_mg
             else:
-                lim = gyro_spread_dps * _GYRO_LSB_DPS
-                shown, unit, limit = spread // _GYRO_LSB_DPS, "dps", gyro_spread_dps
+                lim = gyro_spread_dps * GYRO_LSB_DPS
+                shown, unit, limit = spread // GYRO_LSB_DPS, "dps", gyro_spread_dps
             if spread > lim:
                 raise MPUError(
                     "the part moved during capture (or a bus read was corrupted): %s spread %d %s "
@@ -325,13 +359,12 @@ class Capture:
                     "a corrupted bus read or a knock; nothing written, try again"
                     % (axes[j], far, near)
                 )
-        fac = self.m.factory
-        m = [s[j] // n - ((cur[3 + j] >> 1) - (fac[j] >> 1)) * 2 * _ACCEL_STEP for j in range(3)]
+        m = [s[j] // n - ((cur[3 + j] >> 1) - (factory[j] >> 1)) * 2 * ACCEL_STEP for j in range(3)]
         g = 0
         for j in (1, 2):
             if abs(m[j]) > abs(m[g]):
                 g = j
-        mg = [m[j] * 1000 // _ACCEL_LSB_G for j in range(3)]
+        mg = [m[j] * 1000 // ACCEL_LSB_G for j in range(3)]
         # the tilt first: tilted 30 degrees, the vertical axis reads 866 mg, and a part's own
         # zero-g offset (tens of mg) can take that below 850: still a tilt, not motion
         for j in range(3):
@@ -346,7 +379,7 @@ class Capture:
             )
         self._check_turn(g, max_turn_dps)
         self._check_bias(cur, t, max_bias_dps)
-        return g, (_ACCEL_LSB_G if m[g] > 0 else -_ACCEL_LSB_G)
+        return g, (ACCEL_LSB_G if m[g] > 0 else -ACCEL_LSB_G)
 
     def _check_turn(self, g, max_turn_dps):
         # A steady turn has no spread to speak of, but gravity moves in the part's frame: compare
@@ -372,80 +405,67 @@ class Capture:
         d = d2**0.5
         if d * d <= 16.0 * v2:
             return
-        dps = d / _ACCEL_LSB_G * 57.29578 / (self._n / 2000.0)  # the two parts' centres are n/2 ms apart
+        dps = d / ACCEL_LSB_G * 57.29578 / (self._n / 2000.0)  # the two parts' centres are n/2 ms apart
         if dps > max_turn_dps:
             raise MPUError(
                 "the part turned during capture: gravity moved %.2f deg in %.2f s (%.1f deg/s, limit "
-                "%s); keep it still; nothing written" % (d / _ACCEL_LSB_G * 57.29578, self._n / 2000.0, dps,
+                "%s); keep it still; nothing written" % (d / ACCEL_LSB_G * 57.29578, self._n / 2000.0, dps,
                                                        max_turn_dps)
             )
 
     def _check_bias(self, cur, t, max_bias_dps):
         # A turn about the vertical shows only as a gyro bias no part at rest has (datasheet
         # ZRO tolerance, widened with the temperature away from 25 degC).
+        tc = celsius100(self._row, t)
         lim = max_bias_dps
         if lim is None:
-            lim = self.m.zro_limit_dps(t)
+            lim = zro_limit(self._row, tc)
         n = self._n
         for k in range(3):
             # output at +-250 dps = bias + 4 LSB per register LSB already in the part
-            dps = (self._sum[3 + k] / n - _GYRO_STEP * cur[k]) / _GYRO_LSB_DPS
+            dps = (self._sum[3 + k] / n - GYRO_STEP * cur[k]) / GYRO_LSB_DPS
             if abs(dps) > lim:
                 raise MPUError(
                     "gyro %s reads %+.1f deg/s at rest, more than this %s's zero-rate offset can be "
                     "(+-%.1f deg/s at %.1f degC): was the board turning? Nothing written. (A part outside "
-                    "its datasheet: pass max_bias_dps=)" % ("xyz"[k], dps, self.m.part, lim,
-                                                             self.m.temp_c100(t) / 100.0)
+                    "its datasheet: pass max_bias_dps=)" % ("xyz"[k], dps, self._row[NAME], lim, tc / 100.0)
                 )
 
-    def _capture_at_rest(self, packets, settle_ms):
-        # -> (temperature, offsets held); the offsets must not change during the capture (an
-        # ICM-20602 rewriting its trim mid-capture would mix two biases)
-        before = self.m._read_offsets()
-        t = self._capture(packets, settle_ms)
-        cur = self.m._read_offsets()
-        if cur != before:
-            self.m.trim_changes += 1
-            raise MPUError(
-                "offset registers changed during the capture (%r -> %r): the part rewrote its trim "
-                "(a known ICM-20602 fault); nothing written, try again" % (before, cur)
-            )
-        return t, cur
+    def trim_changed(self, before, after):
+        """The error for offset registers that changed during a capture (read before and after)."""
+        return MPUError(
+            "offset registers changed during the capture (%r -> %r): the part rewrote its trim "
+            "(a known ICM-20602 fault); nothing written, try again" % (before, after)
+        )
 
-    def calibrate(self, packets=1000, settle_ms=50, gyro_spread_dps=5, accel_spread_mg=150, max_tilt_mg=150,
-                  max_bias_dps=None, max_turn_dps=1):
-        """The body of ``MPU6xxx.calibrate`` (its docstring is the contract)."""
-        t, cur = self._capture_at_rest(packets, settle_ms)
-        g, e = self._analyse(cur, gyro_spread_dps, accel_spread_mg, max_tilt_mg, t, max_bias_dps, max_turn_dps)
+    def calibrate(self, cur, factory, t, gyro_spread_dps, accel_spread_mg, max_tilt_mg, max_bias_dps, max_turn_dps):
+        """After ``capture()``: the offset words [gx, gy, gz, ax, ay, az] that zero the bias, from
+        the offsets the part held during it (cur) and its factory trim; raises MPUError on a
+        capture that is not usable (the contract is ``MPU6xxx.calibrate``'s docstring)."""
+        g, e = self._analyse(cur, factory, t, gyro_spread_dps, accel_spread_mg, max_tilt_mg, max_bias_dps,
+                             max_turn_dps)
         n = self._n
         s = self._sum
         words = [0] * 6
         for k in range(3):
             # the output already includes the current register: new = current - bias
-            words[k] = _clamp_gyro(k, cur[k] + _rdiv(-s[3 + k], _GYRO_STEP * n))
+            words[k] = clamp_gyro(k, cur[k] + _rdiv(-s[3 + k], GYRO_STEP * n))
             d = s[k] - (e * n if k == g else 0)  # bias * n in +-2 g output LSB: |d| < 2**30
             # the 15-bit field (bits 15..1) counts 2 word LSB = 16 output LSB at +-2 g
-            t15 = (cur[3 + k] >> 1) + _rdiv(-d, 2 * _ACCEL_STEP * n)
-            words[3 + k] = _clamp_accel15(k, t15) * 2 | (cur[3 + k] & 1)
-        self.m._write_offsets(words)
-        self.m._target = words
-        return (tuple(words[:3]), tuple(words[3:]))
+            t15 = (cur[3 + k] >> 1) + _rdiv(-d, 2 * ACCEL_STEP * n)
+            words[3 + k] = clamp_accel15(k, t15) * 2 | (cur[3 + k] & 1)
+        return words
 
-    def bias_point(self, packets=1000, settle_ms=50, gyro_spread_dps=5, accel_spread_mg=150, max_tilt_mg=150,
-                   max_bias_dps=None, max_turn_dps=1):
-        """Capture at rest at the present temperature; write nothing.
-
-        Returns (t_raw, (gx, gy, gz), (ax, ay, az)): the raw temperature reading and, as floats,
-        the register values that would zero the bias now (gyro register LSB, accel word LSB).
-        Collect points at several temperatures for ``tempcomp.mpu6xxx_tc.BiasModel``. The
-        capture is checked as calibrate() checks it.
-        """
-        t, cur = self._capture_at_rest(packets, settle_ms)
-        g, e = self._analyse(cur, gyro_spread_dps, accel_spread_mg, max_tilt_mg, t, max_bias_dps, max_turn_dps)
+    def bias_point(self, cur, factory, t, gyro_spread_dps, accel_spread_mg, max_tilt_mg, max_bias_dps,
+                   max_turn_dps):
+        """After ``capture()``, checked as calibrate() checks it: (t, (gx, gy, gz), (ax, ay, az)),
+        the register values as floats that would zero the bias now (``MPU6xxx.bias_point``)."""
+        g, e = self._analyse(cur, factory, t, gyro_spread_dps, accel_spread_mg, max_tilt_mg, max_bias_dps,
+                             max_turn_dps)
         n = self._n
         s = self._sum
-        gy = tuple(cur[k] - s[3 + k] / (_GYRO_STEP * n) for k in range(3))
+        gy = tuple(cur[k] - s[3 + k] / (GYRO_STEP * n) for k in range(3))
         ac = tuple(
-            (cur[3 + k] & ~1) - (s[k] - (e * n if k == g else 0)) / (_ACCEL_STEP * n) for k in range(3)
+            (cur[3 + k] & ~1) - (s[k] - (e * n if k == g else 0)) / (ACCEL_STEP * n) for k in range(3)
         )
         return (t, gy, ac)

@@ -1,9 +1,19 @@
-"""Register layouts of the InvenSense MPU-6050/6500 family parts tempcomp.mpu6xxx drives.
+"""The facts of the InvenSense MPU-6050/6500 family that every layer of its code shares.
 
-One row per part; detection is by WHO_AM_I (register 0x75), and a clone that answers another
-id is driven by naming the part whose layout it copies. Sources: sensor-facts.md (InvenSense
-section), RM-MPU-6000A, RM-MPU-9250 sec. 4, the Linux inv_mpu6050 driver's part table (FIFO
-sizes; the ICM-20602 always writes the temperature into its FIFO packets).
+The bottom of the family (README "Layers"): it imports no other tempcomp module. Above it,
+each importing only what lies below: ``tempcomp.mpu6xxx_rt`` (offset(T) resumed from record
+``mpu_tcc``), ``tempcomp.mpu6xxx_cal`` (the FIFO capture at rest) and ``tempcomp.mpu6xxx_tc``
+(``BiasModel``: offset(T) fitted, its fixed-point set-up); ``tempcomp.mpu6xxx`` (the driver)
+on top, which hands them what they need (its bus device, this table's row, the offsets and
+ranges it read) and applies what they compute.
+
+Here: the part table, one row per part; detection is by WHO_AM_I (register 0x75), and a clone
+that answers another id is driven by naming the part whose layout it copies. Sources:
+sensor-facts.md (InvenSense section), RM-MPU-6000A, RM-MPU-9250 sec. 4, the Linux inv_mpu6050
+driver's part table (FIFO sizes; the ICM-20602 always writes the temperature into its FIFO
+packets). The datasheet conversions of a row (temperature, zero-rate tolerance), the family's
+error and its warnings: what every boot needs. The offset registers' units and fields (what a
+capture and a model compute in) are in ``tempcomp.mpu6xxx_units``, beside this one.
 
 Usage::
 
@@ -19,6 +29,31 @@ except ImportError:
     def const(x):
         return x
 
+
+try:
+    from warnings import warn as _warn  # pyright: ignore[reportMissingImports]
+except ImportError:
+    _warn = None
+
+
+def warn(msg):
+    """The family's warnings: warnings.warn on CPython (naming the caller's line), printed on the
+    boards."""
+    if _warn is None:
+        print("tempcomp.mpu6xxx warning:", msg)
+    else:
+        _warn(msg, stacklevel=2)
+
+
+class MPUError(OSError):
+    """A bus fault, a read-back mismatch or an unusable capture on an MPU-6xxx part."""
+
+    __module__ = "tempcomp.mpu6xxx"  # its public home: what users catch and tracebacks name
+
+
+# The one register both the driver and the capture read (RM-MPU-6000A 4.18); each module keeps
+# the registers only it uses as its own const()s
+TEMP_OUT_H = const(0x41)
 
 # column indices of a row
 NAME = const(0)
@@ -73,3 +108,17 @@ def by_name(name):
 
 def names():
     return tuple(row[NAME] for row in PARTS)
+
+
+def celsius100(row, raw):
+    """TEMP_OUT reading raw of part ``row`` in hundredths of a degC."""
+    sens = row[TEMP_SENS]
+    # |2 * raw * 10000| <= 6.6e8 < 2**30
+    return (raw * 20000 + sens) // (2 * sens) + row[TEMP_ZERO]
+
+
+def zro_limit(row, t_c100):
+    """The gyro bias (deg/s) part ``row`` may have at rest at t_c100 (hundredths of a degC): its
+    datasheet initial tolerance plus the variation over temperature away from 25 degC."""
+    dt = abs(t_c100 - 2500) / 100.0
+    return row[ZRO_DPS] + row[ZRO_SPAN_DPS] * dt / 60.0  # the span covers 25 -> -40/+85 degC

@@ -13,6 +13,9 @@ exports those once the model is in use, the session saves them as record ``mpu_t
 The arithmetic of ``_State.update`` is ``fixedpoint.Compensator._update_fast`` for three axes
 with constant scales (every MPU range), with its bounds; results are bit-identical
 (host_tests/sensors/test_mpu6xxx_rt.py compares them over the whole temperature range).
+
+Beside the driver, below it: it imports nothing. The driver hands ``resume`` the record and what
+it read from the part (ranges, offsets) and installs the two states it returns.
 """
 
 try:
@@ -103,9 +106,11 @@ class _State:
             k += 1
 
 
-def resume(imu, v, model=None):
-    # MPU6xxx.compensate(mpu_tcc, mpu_tc): checks the record, and that the part holds the
-    # ranges and offsets it was built for, then installs it; nothing changes on refusal
+def resume(v, model, ranges, offsets):
+    """The two per-sample states (accel, gyro) of ``MPU6xxx.compensate(mpu_tcc, mpu_tc)``: record
+    ``v`` checked, and that it was built from ``model`` (the mpu_tc record, or None: not
+    checked) for the part's full-scale ``ranges`` (gyro dps, accel g) and the six offset
+    registers it holds. ValueError (one line) when it does not fit; nothing is kept then."""
     ok = len(v) == LENGTH and v[0] == VERSION
     i = _HEAD
     while ok and i < LENGTH:
@@ -122,14 +127,13 @@ def resume(imu, v, model=None):
         raise ValueError("mpu_tcc: not a compiled offset(T) record")
     if model is not None and model_hash(model) != v[1]:
         raise ValueError("mpu_tcc was not built from this mpu_tc model (a save cut short?): call compensate(model)")
-    gdps, ag = imu.ranges()
+    gdps, ag = ranges
     if gdps != v[2] or ag != v[3]:
         raise ValueError("mpu_tcc was built for +-%d dps, +-%d g; the part is set to +-%d dps, +-%d g: "
                          "call compensate(model)" % (v[2], v[3], gdps, ag))
-    cur = imu._read_offsets()
     for k in range(6):
         m = -1 if k < 3 else -2  # accel bit 0 is the part's, not ours
-        if cur[k] & m != v[4 + k] & m:
+        if offsets[k] & m != v[4 + k] & m:
             raise ValueError("mpu_tcc was built for other offset registers: restore() the offsets saved "
                              "with it, or call compensate(model)")
-    imu._comp_set(_State(v, _HEAD), _State(v, _HEAD + _PER))
+    return _State(v, _HEAD), _State(v, _HEAD + _PER)

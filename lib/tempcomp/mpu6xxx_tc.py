@@ -22,16 +22,29 @@ Usage::
     model = BiasModel(pts)
     store.save("mpu_tc", model.to_ints())
     model = BiasModel.from_ints(store.load("mpu_tc"))
+
+Beside the driver, below it: it stands on ``tempcomp.fixedpoint``, ``tempcomp.mpu6xxx_units``
+and ``tempcomp.mpu6xxx_rt`` (the record ``compiled()`` writes). The driver hands the model what
+it read from the part (ranges, offsets, temperature) and applies what the model computes
+(``BiasModel.compensators``, ``BiasModel.registers``); the model never calls the driver back.
 """
 
 from tempcomp.fixedpoint import (
     CLAMP,
     EXTRAPOLATE,
     Compensator,
-    _fl,
-    _gcd,
-    _ratio,
+    gcd,
     quadratic_through,
+    ratio,
+    to_float,
+)
+from tempcomp.mpu6xxx_units import (
+    ACCEL_LSB_G,
+    ACCEL_STEP,
+    GYRO_LSB_DPS,
+    GYRO_STEP,
+    clamp_accel15,
+    clamp_gyro,
 )
 
 _FRAC = 16  # to_ints keeps register values in 1/16 LSB
@@ -75,7 +88,7 @@ def _exact_fit(ts, ys, t_ref):
     # points when n <= 3) by Cramer's rule on the integer normal equations in u = t - t_ref, each
     # y taken as the binary fraction it is. Returns (num, den) pairs, den > 0, of powers of u.
     # Long ints (u**4 * n alone passes 2**31): OverflowError on a build without them.
-    rs = [_ratio(y) for y in ys]
+    rs = [ratio(y) for y in ys]
     den = max(r for _, r in rs)  # powers of two (or 1): the largest is a common multiple
     yi = [v * (den // r) for v, r in rs]
     us = [t - t_ref for t in ts]
@@ -92,7 +105,7 @@ def _exact_fit(ts, ys, t_ref):
         d = det * den
         if d < 0:
             num, d = -num, -d
-        g = _gcd(num, d)
+        g = gcd(num, d)
         out.append((num // g, d // g))
     return out
 
@@ -172,7 +185,7 @@ class BiasModel:
             # exact: the fixed-point set-up then gives the same integers on every interpreter, single-
             # precision floats (Cortex-M3) or float64 (the host), from the same points (to_ints)
             self._q = [_exact_fit(ts, y, self.t_ref) for y in ys]
-            self.coeffs = [[_fl(c) for c in q] for q in self._q]
+            self.coeffs = [[to_float(c) for c in q] for q in self._q]
         except OverflowError:  # a build without long ints: in floats
             self._q = None
             self.coeffs = [_fit(ts, y, self.t_ref) for y in ys]
@@ -213,6 +226,28 @@ class BiasModel:
         a = (hw.apply(0, 3) * 2, hw.apply(0, 4) * 2, hw.apply(0, 5) * 2)
         return (g, a)
 
+    def registers(self, t_raw):
+        """targets(t_raw) as the offset registers can hold them: each clamped to its field (with
+        a warning). What ``MPU6xxx.follow`` writes (hardware offset(T))."""
+        g, a = self.targets(t_raw)
+        return ([clamp_gyro(k, g[k]) for k in range(3)], [clamp_accel15(k, a[k] >> 1) * 2 for k in range(3)])
+
+    def compensators(self, ranges, offsets):
+        """The two fixed-point Compensators (accel, gyro) of ``MPU6xxx.read_compensated`` for the
+        part's full-scale ``ranges`` (gyro dps, accel g) and the six offset registers it holds
+        (gyro x y z, accel x y z): output offset(T) in mg and mdps with those registers held."""
+        gdps, ag = ranges
+        gfs = gdps // 250
+        afs = ag // 2
+        k_g = GYRO_STEP / gfs  # output LSB per gyro register LSB at this range
+        k_a = ACCEL_STEP / afs  # output LSB per accel word LSB at this range
+        offs_g = [self.offset_poly(k, offsets[k], k_g) for k in range(3)]
+        offs_a = [self.offset_poly(3 + k, offsets[3 + k] & ~1, k_a) for k in range(3)]
+        t_cal = self.t_cal
+        cg = Compensator(offs_g, [[GYRO_LSB_DPS / gfs]] * 3, t_cal, out_scale=1000, t_ref=self.t_ref, policy=self.policy)
+        ca = Compensator(offs_a, [[ACCEL_LSB_G / afs]] * 3, t_cal, out_scale=1000, t_ref=self.t_ref, policy=self.policy)
+        return ca, cg
+
     def offset_poly(self, axis, base, k):
         """Output offset vs temperature when ``base`` is held: (base - value(t)) * k LSB.
 
@@ -223,7 +258,7 @@ class BiasModel:
             c = [-v * k for v in self.coeffs[axis]]
             c[0] += base * k
             return c
-        kn, kd = _ratio(k)
+        kn, kd = ratio(k)
         q = q[axis]
         c = [(-v * kn, d * kd) for v, d in q]
         c[0] = ((base * q[0][1] - q[0][0]) * kn, q[0][1] * kd)
@@ -250,49 +285,6 @@ class BiasModel:
         return cls(pts, policy)
 
 
-def follow(imu, model, step_c100=50):
-    # MPU6xxx.follow(): here, beside the model it needs, so a boot that never follows the
-    # temperature in hardware does not load it (docs/ram.md)
-    from tempcomp.mpu6xxx import MPUError, _clamp_accel15, _clamp_gyro
-    from tempcomp.mpu6xxx_parts import TEMP_SENS
-
-    if imu._dev.read_u8(0x6B) & 0x40:  # PWR_MGMT_1.SLEEP (RM-MPU-6000A 4.28)
-        raise MPUError("the part is asleep (PWR_MGMT_1.SLEEP): its temperature is stale")
-    t = imu.temp_raw()
-    step = step_c100 * imu._row[TEMP_SENS] // 10000
-    last = imu._follow_t
-    if last is not None and abs(t - last) < step:
-        return False
-    g, a = model.targets(t)
-    imu.apply(
-        [_clamp_gyro(k, g[k]) for k in range(3)],
-        [_clamp_accel15(k, a[k] >> 1) * 2 for k in range(3)],
-    )
-    imu._follow_t = t
-    return True
-
-
-def compensate(imu, model, check=None):  # check: used by the compiled form only
-    # MPU6xxx.compensate(model) for a BiasModel: the fixed-point set-up, here beside the model,
-    # so a boot that resumes the compiled state (tempcomp.mpu6xxx_rt) never loads it
-    imu._comp_set(*_compensators(imu, model))
-
-
-def _compensators(imu, model):
-    gdps, ag = imu.ranges()
-    cur = imu._read_offsets()
-    gfs = gdps // 250
-    afs = ag // 2
-    k_g = 4 / gfs  # output LSB per gyro register LSB (one +-1000 dps LSB = 4 LSB at +-250 dps)
-    k_a = 8 / afs  # output LSB per accel word LSB (2048 LSB/g words, 16384 LSB/g at +-2 g)
-    offs_g = [model.offset_poly(k, cur[k], k_g) for k in range(3)]
-    offs_a = [model.offset_poly(3 + k, cur[3 + k] & ~1, k_a) for k in range(3)]
-    t_cal = model.t_cal
-    cg = Compensator(offs_g, [[131 / gfs]] * 3, t_cal, out_scale=1000, t_ref=model.t_ref, policy=model.policy)
-    ca = Compensator(offs_a, [[16384 / afs]] * 3, t_cal, out_scale=1000, t_ref=model.t_ref, policy=model.policy)
-    return ca, cg
-
-
 def compiled(imu, model_ints):
     """Record ``mpu_tcc``: the per-sample integers that ``imu.compensate(BiasModel.from_ints(
     model_ints))`` computes for the present ranges and offsets, for a boot that should not load
@@ -301,12 +293,14 @@ def compiled(imu, model_ints):
     model_ints is the ``mpu_tc`` record (``model.to_ints()``). The imu's own compensation, if
     any, is left as it was.
     """
+    # the record's layout (set-up only)
     from tempcomp.mpu6xxx_rt import LENGTH, VERSION, model_hash
 
-    gdps, ag = imu.ranges()
-    cur = imu._read_offsets()
-    out = [VERSION, model_hash(model_ints), gdps, ag] + list(cur)
-    for c in _compensators(imu, BiasModel.from_ints(model_ints)):
+    ranges = imu.ranges()
+    g, a = imu.offsets()
+    cur = list(g) + list(a)
+    out = [VERSION, model_hash(model_ints), ranges[0], ranges[1]] + cur
+    for c in BiasModel.from_ints(model_ints).compensators(ranges, cur):
         if c._p3 is None or min(c._fd) < 0:
             raise ValueError("compiled(): needs 3 int16 axes with constant scales")
         out += [c._t_lo, c._t_hi, c._fxm, c._fxl, c._fxs, c._half, c._k, c._s]

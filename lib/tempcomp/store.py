@@ -63,223 +63,79 @@ refuses a ``path.new`` that is a symlink, a directory or someone else's file (``
 removes that name; it never writes through it).
 Warnings (one damaged copy, the other used) are printed and kept in ``Store.warnings``.
 
-Heap: this module is the reader of an intact store, what a boot needs; encoding, the crash-safe
-commit and the const() export are in ``tempcomp.store_write``, loaded by the first write; the
-diagnosis of a copy that fails a check (its words, the warnings and errors above, what is at
-``path.new``) in ``tempcomp.store_check``, loaded only then (docs/ram.md).
+Layers, each importing only those below it: ``tempcomp.store_format`` (the format's constants,
+errors, ``Record``, the decoder, the file primitives); ``tempcomp.store_check`` (a copy that fails a
+check, in words; what is at ``path.new``) and ``tempcomp.store_encode`` (records to bytes);
+``tempcomp.store_write`` (the crash-safe commit); this module, the ``Store`` facade, on top. A
+boot whose store is intact loads the format and this module only; the others come with a damaged
+copy or the first save (docs/ram.md).
 """
 
-import os
-import struct
-from array import array
+from tempcomp.store_format import (
+    BLANK,
+    KIND_RAW,
+    MIN_IMAGE,
+    MISSING,
+    OK,
+    decode,
+    entry,
+    read_file,
+)
 
-try:
-    from binascii import crc32 as _crc32
-except ImportError:  # a port built without binascii.crc32: same polynomial, bitwise
-    _crc32 = None
-
-try:
-    from micropython import const
-except ImportError:
-
-    def const(x):
-        return x
-
-
-KIND_RAW = const(0)
-KIND_MLX_REZERO = const(1)
-KIND_MPU_POLY = const(2)
-KIND_ADI_3POINT = const(3)
-KIND_AN12760 = const(4)
-KIND_ELLIPSOID = const(5)
-KIND_AUGMENT = const(6)
-
-T_NONE = const(0)
-T_RAW = const(1)
-T_CENTI_C = const(2)
-T_MV = const(3)
-
-MAGIC = b"TCAL"
-VERSION = const(1)
-MAX_NAME = const(32)
-MAX_PART = const(16)
-MAX_SERIAL = const(32)
-MAX_VALUES = const(4096)
-FRAC_MIN = const(-31)
-FRAC_MAX = const(31)
-
-# Layout (docs/store.md has the table): header "<4sHHII" magic, version, count, length,
-# generation; entries; CRC32 of everything before it in the last 4 bytes.
-_HDR = const(16)
-_ENTRY = const(28)  # fixed part of an entry, "<HBBBBBBHHiiII"
-_CRC = const(4)
-_MIN_IMAGE = const(20)
-
-# slot states
-_OK = const(0)
-_MISSING = const(1)
-_BLANK = const(2)  # erased nvm (0xFF or 0x00): free to write
-_DAMAGED = const(3)  # our magic, but torn or corrupted: free to overwrite, with a warning
-_FOREIGN = const(4)  # not a store (or empty): never overwritten without force=True
-_NEWER = const(5)  # a store in a newer format: never read, never overwritten without force
-_ALIEN = const(6)  # path.new that is not a plain file (a symlink, a directory, a hard link): never
-#                    read, never opened for writing, removed only with force=True
-
-# st_mode file types (POSIX values, the ones MicroPython's os.ilistdir reports too)
-_S_IFMT = const(0o170000)
-_S_IFREG = const(0o100000)
-_S_IFDIR = const(0o040000)
-_S_IFLNK = const(0o120000)
+# The public names of the layers below are this module's too, as before they were split out:
+# store.KIND_MPU_POLY, store.StoreError, store.Record (tempcomp.store_format), store.fixed
+# (tempcomp.store_encode), store.StoreWarning (tempcomp.store_check, which warns) and
+# store.ReadOnlyStoreError (tempcomp.store_write, which raises it). Looked up when asked (PEP 562),
+# so a boot keeps no second table of them and loads no module it does not use.
+TYPE_CHECKING = False
+if TYPE_CHECKING:  # the same names for the type checker
+    from tempcomp.store_check import StoreWarning  # noqa: F401
+    from tempcomp.store_encode import fixed  # noqa: F401
+    from tempcomp.store_format import (  # noqa: F401
+        FRAC_MAX,
+        FRAC_MIN,
+        KIND_ADI_3POINT,
+        KIND_AN12760,
+        KIND_AUGMENT,
+        KIND_ELLIPSOID,
+        KIND_MLX_REZERO,
+        KIND_MPU_POLY,
+        MAGIC,
+        MAX_NAME,
+        MAX_PART,
+        MAX_SERIAL,
+        MAX_VALUES,
+        T_CENTI_C,
+        T_MV,
+        T_NONE,
+        T_RAW,
+        VERSION,
+        Record,
+        StoreError,
+    )
+    from tempcomp.store_write import ReadOnlyStoreError  # noqa: F401
 
 
-class StoreError(ValueError):
-    """The stored data cannot be used (empty, not a store, newer version, bad length/CRC)."""
+def __getattr__(name):
+    if name == "StoreWarning":
+        from tempcomp.store_check import StoreWarning
 
+        return StoreWarning
+    if name == "ReadOnlyStoreError":
+        from tempcomp.store_write import ReadOnlyStoreError
 
-class ReadOnlyStoreError(OSError):
-    """The filesystem refused a write (on CircuitPython: CIRCUITPY is read-only to code)."""
+        return ReadOnlyStoreError
+    if name == "fixed":
+        from tempcomp.store_encode import fixed
 
+        return fixed
+    if name[0] != "_":
+        from tempcomp import store_format
 
-# MicroPython has no Warning class (warnings are printed there): the base is looked up
-try:
-    import builtins
-
-    _WARNING = getattr(builtins, "Warning", Exception)
-except ImportError:
-    _WARNING = Exception
-
-
-class StoreWarning(_WARNING):  # pyright: ignore[reportGeneralTypeIssues]
-    """One copy of the store is damaged and another copy was used."""
-
-
-def _crc(data):
-    if _crc32 is None:
-        from tempcomp.store_check import crc_bitwise
-
-        return crc_bitwise(data)
-    return _crc32(data) & 0xFFFFFFFF
-
-
-def _pow2(f):
-    return float(1 << f) if f >= 0 else 1.0 / (1 << -f)
-
-
-def fixed(x, frac):
-    """round(x * 2**frac) as an int, checked to fit int32 (ValueError otherwise)."""
-    from tempcomp import store_write  # set-up only: the boot's reader does without it
-
-    return store_write.fixed(x, frac)
-
-
-class Record:
-    """One sensor's calibration as loaded: ``values`` array('i'), ``frac`` array('b'), metadata."""
-
-    def __init__(self, name, values, frac, part="", serial="", kind=KIND_RAW,
-                 t_lo=0, t_hi=0, t_unit=T_NONE, counter=0, time=0):
-        self.name = name
-        self.values = values
-        self.frac = frac
-        self.part = part
-        self.serial = serial
-        self.kind = kind
-        self.t_lo = t_lo
-        self.t_hi = t_hi
-        self.t_unit = t_unit
-        self.counter = counter
-        self.time = time
-
-    def real(self, i):
-        """Value i as a float: values[i] / 2**frac[i] (allocates: set-up time only)."""
-        return self.values[i] * _pow2(-self.frac[i])
-
-    def __repr__(self):
-        from tempcomp.store_check import record_repr
-
-        return record_repr(self)
-
-
-def _pad4(n):
-    return (n + 3) & ~3
-
-
-def _entry_size(nb, pb, sb, m):
-    return _ENTRY + _pad4(nb + pb + sb + m) + 4 * m
-
-
-# A malformed entry raises ValueError(code, *numbers): the words are tempcomp.store_check's
-# _MALFORMED[code], built only when a copy is diagnosed (a boot whose store is intact never
-# loads them).
-
-
-def _text(buf, p, n, first):
-    for i in range(p, p + n):
-        if not first <= buf[i] <= 0x7E:
-            raise ValueError(0, buf[i], i)
-    return bytes(buf[p:p + n]).decode()
-
-
-def _decode_entries(buf, count, end, gen):
-    recs = []
-    seen = {}
-    off = _HDR
-    for k in range(count):
-        if off + _ENTRY > end:
-            raise ValueError(1, k, off, end)
-        (elen, kind, t_unit, nl, pl, sl, res1, m, res2, t_lo, t_hi, counter,
-         tm) = struct.unpack_from("<HBBBBBBHHiiII", buf, off)
-        if res1 or res2:
-            raise ValueError(2, k)
-        if not 1 <= nl <= MAX_NAME or pl > MAX_PART or sl > MAX_SERIAL or m > MAX_VALUES:
-            raise ValueError(3, k, nl, pl, sl, m)
-        if elen != _entry_size(nl, pl, sl, m) or off + elen > end:
-            raise ValueError(4, k, elen)
-        if counter > gen:
-            raise ValueError(5, k, counter, gen)
-        p = off + _ENTRY
-        name = _text(buf, p, nl, 0x20)
-        part = _text(buf, p + nl, pl, 0x20)
-        serial = _text(buf, p + nl + pl, sl, 0x20)
-        if name in seen:
-            raise ValueError(6, k, name)
-        seen[name] = True
-        p += nl + pl + sl
-        frac = array("b", [0] * m)
-        for i in range(m):
-            f = buf[p + i]
-            f = f - 256 if f & 0x80 else f
-            if not FRAC_MIN <= f <= FRAC_MAX:
-                raise ValueError(7, k, i, f)
-            frac[i] = f
-        for i in range(p + m, off + elen - 4 * m):
-            if buf[i]:
-                raise ValueError(8, k)
-        values = array("i", [0] * m)
-        p = off + elen - 4 * m
-        for i in range(m):
-            values[i] = struct.unpack_from("<i", buf, p + 4 * i)[0]
-        recs.append(Record(name, values, frac, part, serial, kind, t_lo, t_hi, t_unit, counter, tm))
-        off += elen
-    if off != end:
-        raise ValueError(9, end - off)
-    return recs
-
-
-def _parse(buf, slot):
-    """Classify one copy: (state, problem, generation, records). slot: an nvm slot, not a file.
-    An intact copy is read here; any other is diagnosed by tempcomp.store_check."""
-    n = len(buf)
-    if n >= _MIN_IMAGE and bytes(buf[0:4]) == MAGIC:
-        _, ver, count, length, gen = struct.unpack_from("<4sHHII", buf, 0)
-        if ((length == n or slot and _MIN_IMAGE <= length <= n) and ver == VERSION and gen
-                and struct.unpack_from("<I", buf, length - _CRC)[0] == _crc(memoryview(buf)[0:length - _CRC])):
-            try:
-                return _OK, "", gen, _decode_entries(buf, count, length - _CRC, gen)
-            except ValueError:
-                pass
-    from tempcomp.store_check import parse
-
-    return parse(buf, slot)
+        v = getattr(store_format, name, store_format)
+        if v is not store_format:
+            return v
+    raise AttributeError(name)
 
 
 class Store:
@@ -290,16 +146,16 @@ class Store:
             raise ValueError("Store needs either a path or nvm=, not both or neither")
         self.path = path
         self._nvm = nvm
+        self._slots = None
         if nvm is not None:
             total = len(nvm) - offset if size is None else size
-            if offset < 0 or total < 2 * _MIN_IMAGE or offset + total > len(nvm):
+            if offset < 0 or total < 2 * MIN_IMAGE or offset + total > len(nvm):
                 raise ValueError("nvm region %d+%d does not fit nvm of %d bytes (needs two slots)"
                                  % (offset, total, len(nvm)))
             half = total // 2
             self._slots = ((offset, half), (offset + half, half))
         self.generation = 0
         self.warnings = []
-        self._damaged = []
         self._lost = None
         self._recs = None
         self._index = None
@@ -311,61 +167,6 @@ class Store:
 
     # -- reading --------------------------------------------------------------------------
 
-    def _file_names(self):
-        p = self.path or ""
-        return [p, p + ".old", p + ".new"]
-
-    def _labels(self):
-        if self._nvm is None:
-            return self._file_names()
-        return ["nvm slot A", "nvm slot B"]
-
-    def _exists(self, p):
-        try:
-            os.stat(p)
-            return True
-        except OSError:
-            return False
-
-    def _read_file(self, path):
-        try:
-            f = open(path, "rb")
-        except OSError:
-            # errno numbers differ between ports (ENOENT is 44 under Emscripten): ask stat
-            if not self._exists(path):
-                return None
-            raise
-        try:
-            return f.read()
-        finally:
-            f.close()
-
-    def _entry(self, p):
-        """(file type bits, hard links) of the name p itself, never following a symlink; None
-        when nothing is there. MicroPython has no lstat: its os.ilistdir reports the entry's
-        own type (VfsPosix from d_type, so a symlink shows as one; LittleFS and FAT have none)."""
-        lstat = getattr(os, "lstat", None)
-        if lstat is not None:
-            try:
-                st = lstat(p)
-            except OSError:
-                return None
-            return st[0] & _S_IFMT, st[3]
-        i = p.rfind("/")
-        d, name = (p[:i] or "/", p[i + 1:]) if i >= 0 else (None, p)
-        try:
-            entries = os.ilistdir(d) if d is not None else os.ilistdir()
-            for e in entries:
-                if e[0] == name:
-                    t = e[1] & _S_IFMT
-                    if t == 0:  # a filesystem that does not say: ask stat
-                        t = os.stat(p)[0] & _S_IFMT
-                    return t, 1
-        except (OSError, AttributeError):
-            if self._exists(p):
-                return os.stat(p)[0] & _S_IFMT, 1
-        return None
-
     def _state(self, force=False, writing=False):
         """(best copy or -1, (states, problems), records, generation). Here only when every
         copy there is intact and nothing is at path.new; else tempcomp.store_check decides."""
@@ -373,34 +174,35 @@ class Store:
         slot = nvm is not None
         whole = True
         if nvm is not None:
-            copies = [bytes(nvm[a:a + n]) for a, n in self._slots]
+            copies = [bytes(nvm[a:a + n]) for a, n in self._slots or ()]
         else:
             p = self.path or ""
-            copies = [self._read_file(p), self._read_file(p + ".old"), None]
-            whole = self._entry(p + ".new") is None  # else what a cut (or someone) left there
+            copies = [read_file(p), read_file(p + ".old"), None]
+            whole = entry(p + ".new") is None  # else what a cut (or someone) left there
         best, gen, recs, states = -1, 0, [], []
-        for i in range(len(copies)):
-            if not whole:
-                break
+        for i in range(len(copies) if whole else 0):
             buf = copies[i]
-            s = _MISSING
+            s = MISSING
             if buf is not None:
                 if slot and bytes(buf[0:4]) in (b"\xff\xff\xff\xff", b"\0\0\0\0"):
-                    s = _BLANK  # an erased slot: free to write
+                    s = BLANK  # an erased slot: free to write
                 else:
-                    s, _, g, r = _parse(buf, slot)
-                    whole = s == _OK
-                    if g > gen:
-                        best, gen, recs = i, g, r
+                    r = decode(buf, slot)
+                    if r is None:
+                        whole = False
+                        break
+                    s = OK
+                    if r[0] > gen:
+                        best, gen, recs = i, r[0], r[1]
             states.append(s)
         if not whole:
             from tempcomp.store_check import state
 
-            return state(self, force, writing)
+            best, states, recs, gen, self.warnings, self._lost = state(self.path, nvm, self._slots, force, writing)
+            return best, states, recs, gen
         self.warnings = []
-        self._damaged = []
         self._lost = None
-        whys = ["is blank" if s == _BLANK else "" if s == _OK else "does not exist" for s in states]
+        whys = ["is blank" if s == BLANK else "" if s == OK else "does not exist" for s in states]
         return best, (states, whys), recs, gen
 
     def _set_cache(self, recs, gen):
@@ -441,7 +243,7 @@ class Store:
             if self._lost is not None:
                 from tempcomp.store_salvage import lost_error
 
-                raise lost_error(self, name)
+                raise lost_error(self._lost, name, self.generation)
             raise KeyError("%r was never saved in %r" % (name, self))
         r = index[name]
         if part is not None and r.part != part:
@@ -477,8 +279,8 @@ class Store:
         self._ensure()
         return [r.name for r in self._recs or ()]
 
-    # -- writing: tempcomp.store_write, loaded by the first write (a boot that only reads never
-    # has it on its heap) ---------------------------------------------------------------------
+    # -- writing: tempcomp.store_encode and tempcomp.store_write, loaded by the first write (a
+    # boot that only reads never has them on its heap) ------------------------------------------
 
     def save(self, name, values):
         """Store ints (each within int32) under a short ASCII name; durable when it returns."""
@@ -493,18 +295,28 @@ class Store:
         when a span is given); when: UTC seconds since 1970, default the RTC (0 if not set).
         force=True overwrites a copy that is not a store of this version (its data is lost).
         """
-        from tempcomp import store_write
+        from tempcomp.store_encode import new_record
 
-        store_write.save_record(self, name, values, part, serial, kind, frac, t_span, t_unit, when, force)
+        self._write(new_record(name, values, part, serial, kind, frac, t_span, t_unit, when), None, force)
 
     def delete(self, name, force=False):
         """Remove a record (a crash-safe write like save); KeyError if it is not there."""
-        from tempcomp import store_write
+        self._write(None, name, force)
 
-        store_write.delete(self, name, force)
+    def _write(self, rec, drop, force):
+        from tempcomp.store_write import write
+
+        # until the write has succeeded (an error, or a power cut in a test): re-read the medium
+        # before trusting a cache
+        self._recs = None
+        self._index = None
+        recs, gen = write(self.path, self._nvm, self._slots, self._state(force, True), rec, drop, force, repr(self))
+        self._set_cache(recs, gen)
 
     def export_module(self, dst):
         """Write the records as a Python module of const() values (path or stream)."""
-        from tempcomp import store_write
+        from tempcomp.store_encode import module_text
+        from tempcomp.store_write import export
 
-        store_write.export_module(self, dst)
+        self._ensure()
+        export(dst, module_text(self._recs or (), self.generation))

@@ -1,44 +1,32 @@
-"""What a damaged store copy still says: read by ``tempcomp.store`` only when a copy fails its
+"""What a damaged store copy still says: read by ``tempcomp.store_check`` only when a copy fails its
 checks, to name the records a corrupt newest copy took with it (never trusted as data). Kept out
 of ``tempcomp.store`` so a boot whose store is intact never loads it (docs/ram.md).
 """
 
 import struct
 
-from tempcomp.store import StoreError, _entry_size, _text
-
-try:
-    from micropython import const
-except ImportError:
-
-    def const(x):
-        return x
-
-
-_HDR = const(16)  # as in tempcomp.store (private const() names are not module attributes)
-_ENTRY = const(28)
-_CRC = const(4)
+from tempcomp.store_format import CRC_SIZE, ENTRY, HEADER, StoreError, entry_size, read_text
 
 
 def salvage(buf):
     # What a damaged copy's header and entries still say: (generation, record names, all names
     # read?). Only to tell the user what a corrupt newest copy took with it; never trusted as data.
     n = len(buf)
-    if n < _HDR:
+    if n < HEADER:
         return 0, [], False
     count = struct.unpack_from("<H", buf, 6)[0]
     length = struct.unpack_from("<I", buf, 8)[0]
     gen = struct.unpack_from("<I", buf, 12)[0]
     names = []
-    off = _HDR
+    off = HEADER
     for _ in range(count):
-        if off + _ENTRY > n:
+        if off + ENTRY > n:
             return gen, names, False
         e = struct.unpack_from("<HBBBBBBH", buf, off)
-        if not e[3] or e[0] != _entry_size(e[3], e[4], e[5], e[7]) or off + e[0] > n:
+        if not e[3] or e[0] != entry_size(e[3], e[4], e[5], e[7]) or off + e[0] > n:
             return gen, names, False
         try:
-            names.append(_text(buf, off + _ENTRY, e[3], 0x20))
+            names.append(read_text(buf, off + ENTRY, e[3], 0x20))
         except ValueError:
             return gen, names, False
         # a save's record carries its generation too: one flipped bit cannot lower both
@@ -46,19 +34,19 @@ def salvage(buf):
         if c > gen:
             gen = c
         off += e[0]
-    return gen, names, off + _CRC in (length, n)  # else the count is wrong: names may be missing
+    return gen, names, off + CRC_SIZE in (length, n)  # else the count is wrong: names may be missing
 
 
 def lost_names(lost):
-    """The records only the corrupt newest copy held, in words (``Store._lost``)."""
+    """The records only the corrupt newest copy held, in words (``lost`` as for lost_error)."""
     names = ", ".join(repr(x) for x in lost[3]) or "none"
     return "records only it held (lost): %s%s" % (
         names, "" if lost[4] else " (and maybe more: its entries are unreadable past that)")
 
 
-def lost_error(store, name):
-    """The StoreError for a record missing from the copy in use while a newer copy is corrupt."""
-    lost = store._lost
+def lost_error(lost, name, generation):
+    """The StoreError for a record missing from the copy in use (of that generation) while a newer
+    copy is corrupt (``lost``: what ``tempcomp.store_check.state`` found it took with it)."""
     return StoreError("%r is not in the copy in use (generation %d): the newest copy of the store (%s, "
-                      "generation %d) %s; %s" % (name, store.generation, lost[0], lost[2], lost[1],
+                      "generation %d) %s; %s" % (name, generation, lost[0], lost[2], lost[1],
                                                  lost_names(lost)))

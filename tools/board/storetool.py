@@ -11,7 +11,7 @@
 Copy a store from a board with ``mpremote cp :tempcomp.cal .`` and back the same way.
 
 The codec here is written from the format table in docs/store.md, independently of
-lib/tempcomp/store.py (the device code), so that a round trip through both checks the format
+lib/tempcomp/store*.py (the device code), so that a round trip through both checks the format
 rather than one implementation against itself. JSON fields: format, generation, records: a
 list of {name, part, serial, kind, t_unit, t_span, counter, time, values, frac}; "real" (the
 values scaled by 2**-frac) and "time_utc" are written for reading and ignored on input, except
@@ -283,15 +283,17 @@ def check_doc(doc):
 
 
 def device_check(image, slot=False):
-    """Parse image with the device's own reader (lib/tempcomp/store.py): FormatError if it refuses."""
+    """Parse image with the device's own checker (lib/tempcomp/store_check.py, on the decoder of
+    store_format.py): FormatError if it refuses."""
     if LIB not in sys.path:
         sys.path.insert(0, LIB)
-    from tempcomp import store
+    from tempcomp.store_check import parse
+    from tempcomp.store_format import OK
 
     if len(image) > MAX_IMAGE:
         raise FormatError("the store would be %d bytes; the device reads at most %d" % (len(image), MAX_IMAGE))
-    state, why, _, _ = store._parse(bytes(image), slot)
-    if state != store._OK:
+    state, why, _, _ = parse(bytes(image), slot)
+    if state != OK:
         raise FormatError("the device would refuse this store: it %s" % why)
 
 

@@ -125,11 +125,15 @@ def mpy_tree(src):
                 if not os.path.lexists(d):
                     os.symlink(s, d)
             want.add(os.path.normpath(d))
-    for root, _dirs, files in os.walk(dst_root):  # modules removed or renamed since the last run
+    for root, _dirs, files in os.walk(dst_root, topdown=False):  # removed or renamed since the last run
         for f in files:
             p = os.path.normpath(os.path.join(root, f))
             if p not in want:
                 os.unlink(p)
+        if root != dst_root and not os.listdir(root):
+            # a folder left empty (a package moved back to a module) would read as a namespace
+            # package on the board and hide the module of the same name
+            os.rmdir(root)
     return dst_root
 
 

@@ -69,7 +69,7 @@ def _fleet(args, opts):
                                "(units.ID.record) and in --record")
     units = fleet.units_of(args.csv, args.cmd)
     show = sys.stderr.isatty() if args.progress is None else args.progress
-    progress = fleet.Progress(len(units), enabled=show)
+    progress = fleet.progress_bar(len(units), enabled=show)
     client = None
     if args.dask:
         from distributed import Client
@@ -85,6 +85,7 @@ def _fleet(args, opts):
     try:
         results, failed = fleet.run(args.cmd, units, opts, progress, client)
     finally:
+        progress.close()
         if client is not None:
             client.close()
     if failed and not args.skip_bad:

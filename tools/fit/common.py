@@ -1,65 +1,15 @@
-"""Shared input checks for the host fitters: CSV reading, temperature grouping, bad-input errors.
+"""Shared input checks for the host fitters: temperature grouping, bad-input errors (the CSV
+reader is tools.fit.fastcsv).
 
 Every problem in the data is a ``FitError`` (a ValueError) whose message names the row (CSV
 line, header = line 1), the column or the temperature at fault and says what to do.
 """
-
-import csv
-import math
 
 import numpy as np
 
 
 class FitError(ValueError):
     """The data cannot support the requested fit; the message names the problem."""
-
-
-def read_csv(path, required, optional=()):
-    """Columns of a CSV with a header as {name: array}; numeric columns as float64.
-
-    Text columns (e.g. an orientation label) are those listed in ``text``-like optional names
-    that fail to parse; required numeric columns must be finite numbers on every row.
-    """
-    with open(path, newline="") as f:
-        rows = list(csv.reader(f))
-    if not rows:
-        raise FitError("%s is empty: expected a header with columns %s" % (path, ",".join(required)))
-    header = [h.strip() for h in rows[0]]
-    missing = [c for c in required if c not in header]
-    if missing:
-        raise FitError(
-            "%s: missing column(s) %s; the header is %s (need %s)"
-            % (path, ",".join(missing), ",".join(header), ",".join(required))
-        )
-    data = [r for r in rows[1:] if any(x.strip() for x in r)]
-    if not data:
-        raise FitError("%s has a header but no data rows" % path)
-    out = {}
-    for name in list(required) + [c for c in optional if c in header]:
-        j = header.index(name)
-        col = []
-        for i, r in enumerate(data):
-            cell = r[j].strip() if j < len(r) else ""
-            col.append(cell)
-        out[name] = col
-    out["_line"] = np.arange(2, len(data) + 2)
-    return out
-
-
-def numeric(cols, name, path="data"):
-    """Column ``name`` as float64, FitError naming the first non-number (NaN, text, empty)."""
-    vals = cols[name]
-    lines = cols["_line"]
-    arr = np.empty(len(vals))
-    for i, s in enumerate(vals):
-        try:
-            v = float(s)
-        except ValueError:
-            raise FitError("%s line %d: column %s is %r, not a number" % (path, lines[i], name, s))
-        if not math.isfinite(v):
-            raise FitError("%s line %d: column %s is %s; remove or re-measure that row" % (path, lines[i], name, s))
-        arr[i] = v
-    return arr
 
 
 def check_finite(name, arr, lines=None):

@@ -21,7 +21,6 @@ z-score (median and MAD over the fleet) of the residual and of the main coeffici
 
 import os
 import sys
-import time
 
 import numpy as np
 
@@ -196,49 +195,30 @@ def units_of(path, cmd):
     return out
 
 
-class Progress:
-    """A progress bar on stderr: redrawn in place on a terminal, a few plain lines otherwise."""
+def progress_bar(total, enabled=True):
+    """The fleet's progress bar on stderr: tqdm, with its rate and time left; ``update(1)`` per
+    unit, ``close()`` at the end. ``python -m tools fit`` shows it on a terminal (``--progress``
+    forces it into a pipe or log)."""
+    from tqdm import tqdm
 
-    def __init__(self, total, out=None, enabled=True, width=30):
-        self.total = total
-        self.out = out or sys.stderr
-        self.enabled = enabled and total > 0
-        self.width = width
-        self.t0 = time.perf_counter()
-        self.tty = bool(getattr(self.out, "isatty", lambda: False)())
-        self.shown = -1
-
-    def update(self, done):
-        if not self.enabled:
-            return
-        step = max(1, self.total // (200 if self.tty else 10))
-        if done != self.total and done - self.shown < step:
-            return
-        self.shown = done
-        el = time.perf_counter() - self.t0
-        fill = int(self.width * done / self.total)
-        rate = done / el if el > 0 else 0.0
-        line = "[%s%s] %d/%d units, %.1f s, %.0f units/s" % ("#" * fill, "." * (self.width - fill), done,
-                                                           self.total, el, rate)
-        self.out.write(("\r" + line + ("\n" if done == self.total else "")) if self.tty else line + "\n")
-        self.out.flush()
+    return tqdm(total=total, unit="unit", disable=not enabled or total <= 0, file=sys.stderr, mininterval=0.2,
+                dynamic_ncols=True)
 
 
 def run(cmd, units, opts, progress=None, client=None):
     """Fit every (unit_id, source); ({unit_id: result}, {unit_id: error message}).
 
     client: a ``distributed.Client`` to run fit_unit on its workers, else one process here.
+    progress: a bar (``progress_bar``) told of each unit done.
     """
     results = {}
     failed = {}
-    done = 0
     if client is None:
         for uid, src in units:
             status, val = fit_unit_safe(cmd, src, opts, _label(uid, src))
             (results if status == "ok" else failed)[uid] = val
-            done += 1
-            if progress:
-                progress.update(done)
+            if progress is not None:
+                progress.update(1)
         return results, failed
     from distributed import as_completed
 
@@ -248,9 +228,8 @@ def run(cmd, units, opts, progress=None, client=None):
     for fut in as_completed(futs):
         status, val = fut.result()
         (results if status == "ok" else failed)[ids[fut.key]] = val
-        done += 1
-        if progress:
-            progress.update(done)
+        if progress is not None:
+            progress.update(1)
     order = [u for u, _ in units]
     return {u: results[u] for u in order if u in results}, {u: failed[u] for u in order if u in failed}
 
