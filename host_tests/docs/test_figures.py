@@ -49,6 +49,8 @@ REFERENCE = {
     ("docs/store.md", "| offset | size | field | meaning |"): "the binary format (checked by test_store_format)",
     ("docs/security.md", "| attack | what happens | test |"): "the virtual board's threat model",
     ("docs/simgap.md", "| situation | planted (truth) | noise |"): "the wander benchmark's situations (design)",
+    ("docs/host-libraries.md", "| module | was | now |"): "libraries that replaced home-made code",
+    ("docs/host-libraries.md", "| module | what it does by hand | why |"): "what is kept, and why",
 }
 # figure tables not rendered from the record yet, with what it takes: each one is a known gap
 PENDING = {
@@ -59,6 +61,8 @@ PENDING = {
 HISTORY = {
     ("docs/ram.md", "| boot | before | after |"): "the mpu_tcc change, before and after (2026-11-25)",
     ("docs/ram.md", "| step | before the store split | after |"): "the store split, before and after (2026-11-25)",
+    ("docs/host-libraries.md", "| reader | per file |"): "fastcsv against pandas and pyarrow, measured once for "
+                                                        "the decision to keep it (2026-11-27)",
 }
 
 

@@ -58,7 +58,8 @@ class Run:
         if ok is not None:
             row["ok"] = bool(ok)
             if not ok:
-                self.fail("%s: %s = %s %s" % (self._area, name, shown, unit))
+                where = name if name.startswith(self._area) else "%s: %s" % (self._area, name)
+                self.fail("%s = %s %s" % (where, shown, unit))
         area["rows"][k] = row
 
 
