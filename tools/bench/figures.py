@@ -367,26 +367,81 @@ def augment_shrink(r):
     return "\n".join(out)
 
 
+# "before this version" (the pure-Python per-sample path, docs/augment.md): history, not this record's
+_AUG_BEFORE = {"base": "30,820 / 114,380", "temp_rate": "+59,915", "hysteresis": "+29,960", "drift_exp": "+16,865",
+               "drift_hyperbolic": "+9,580", "supply": "+25,865", "g_sensitivity": "+21,225", "cross_axis": "+54,480",
+               "every": "210,150 / 333,175"}
+_AUG_TERMS = (("temp_rate", "temp_rate"), ("hysteresis", "hysteresis"), ("drift_exp", "drift (exp)"),
+              ("drift_hyperbolic", "drift (hyperbolic)"), ("supply", "supply"), ("g_sensitivity", "g_sensitivity"),
+              ("cross_axis", "cross_axis"))
+
+
+def _v(a, key):
+    return getattr(a, key).value
+
+
 def augment_cost(r):
+    """README's cost table of the augmented model (tools/bench/augment.py, Cortex-M3 instructions)."""
     a = r["augment"]
+    pl = _v(a, "m3_plain")
+    rows = ["| per 3-axis sample, Cortex-M3 instructions | reading unchanged | reading changing every sample | "
+            "per sample of a burst of 32 | before this version: unchanged / changing |", "|---|---:|---:|---:|---:|",
+            "| base model (target <= 1.5x the plain sample) | %s (%.2fx) | %s | %s | %s |" % (
+                _n(_v(a, "m3_base")), _v(a, "m3_base") / pl, _n(_v(a, "m3_base_t")), _n(_v(a, "m3_base_b")),
+                _AUG_BEFORE["base"])]
+    for k, label in _AUG_TERMS:
+        rows.append("| + %s, extra | +%s | +%s | +%s | %s |" % (
+            label, _n(_v(a, "m3_extra_" + k)), _n(_v(a, "m3_extra_%s_t" % k)), _n(_v(a, "m3_extra_%s_b" % k)),
+            _AUG_BEFORE[k]))
+    rows += ["| every term (targets: <= 8,000 changing, <= 2,000 in a burst) | %s | %s | %s | %s |" % (
+                 _n(_v(a, "m3_every")), _n(_v(a, "m3_every_t")), _n(_v(a, "m3_every_b")), _AUG_BEFORE["every"]),
+             "| every term, pure Python forced (`augment.use_native(False)`) | %s | %s | | the only path |" % (
+                 _n(_v(a, "m3_every_pure")), _n(_v(a, "m3_every_pure_t"))),
+             "| float anchor (careful float code): base / every term | %s / %s | %s / %s | | |" % (
+                 _n(_v(a, "m3_base_float")), _n(_v(a, "m3_every_float")), _n(_v(a, "m3_base_float_t")),
+                 _n(_v(a, "m3_every_float_t")))]
+    intro = ("Per-sample cost on the Cortex-M3 firmware, from `python -m tools bench augment` (%s; executed "
+             "instructions under qemu -icount, the least of 5 heap layouts, each loop after `gc.collect()`, every "
+             "argument a local and `aug.apply(...)` called directly), beside the plain compensator's sample with the "
+             "same base model (`Compensator.apply_be16`: %s instructions into a list, %s into an `array('i')`) and a "
+             "careful float implementation of the same model:" % (a.date, _n(pl), _n(_v(a, "m3_plain_arr"))))
+    after = ("The native kernels (a viper `apply`, its per-reading step and `apply_be16_n`, an `asm_thumb` body for a "
+             "sample with terms, Thumb-1 only, so the Pico's M0+ runs it too) give the pure path's numbers bit for bit "
+             "on every interpreter; the work is done as rarely as its inputs change (the base gain, rho, dT's terms and "
+             "the cross matrix once per new reading). Heap: the module %s (.mpy; fixedpoint %s more), the first "
+             "model, which imports the native kernels, %s, a second with every term %s; %s bytes allocated per sample "
+             "and per burst (heap-locked in the VM and on the firmware); worst error against float64 with every term "
+             "%.2f output LSB (RMS %.2f). Details, the burst call and the arrays the kernels take: "
+             "[docs/augment.md](docs/augment.md)." % (
+                 _kb(a.ram_module), _kb(a.ram_fixedpoint), _kb(a.ram_first), _kb(a.ram_second), a.alloc,
+                 _v(a, "worst"), _v(a, "rms")))
+    return intro + "\n\n" + "\n".join(rows) + "\n\n" + after
 
-    def k(key):
-        return "%dk" % int(round(getattr(a, key).value / 1000.0))
 
-    return (
-        "Per-sample cost on the Cortex-M3 firmware (`python -m tools bench augment`, executed instructions "
-        "under qemu -icount, the least of 5 heap layouts, each loop after `gc.collect()`, %s): base model %s "
-        "instructions (%.0fx unpacking the burst; %s when the temperature reading changes every sample); extra "
-        "per term: temp_rate %s, hysteresis %s, drift %s (exp) / %s (hyperbolic), supply %s, g_sensitivity %s, "
-        "cross_axis %s, every term %s; heap %.1f KB for the module (.mpy; fixedpoint %.1f KB more) and %.1f-%.1f KB "
-        "per model; %s bytes allocated per sample; worst error against float64 with every term %.2f output LSB "
-        "(RMS %.2f)." % (
-            a.date, k("m3_base"), a.m3_base.value / a.m3_floor.value, k("m3_base_t"), k("m3_extra_temp_rate"),
-            k("m3_extra_hysteresis"), k("m3_extra_drift_exp"), k("m3_extra_drift_hyperbolic"), k("m3_extra_supply"),
-            k("m3_extra_g_sensitivity"), k("m3_extra_cross_axis"), k("m3_extra_every_term"),
-            a.ram_module.value / 1024.0, a.ram_fixedpoint.value / 1024.0,
-            min(a.ram_first.value, a.ram_second.value) / 1024.0, max(a.ram_first.value, a.ram_second.value) / 1024.0,
-            a.alloc, a.worst.value, a.rms.value))
+def augment_cost_page(r):
+    """docs/augment.md's cost table and heap line."""
+    a = r["augment"]
+    worst = max(_AUG_TERMS, key=lambda t: _v(a, "m3_extra_" + t[0]))
+    rows = ["| per 3-axis sample, Cortex-M3 instructions | reading unchanged | reading changing every sample | "
+            "per sample of a burst of 32 |", "|---|---:|---:|---:|",
+            "| plain `Compensator.apply_be16`, into a list / an `array('i')` | %s / %s | | %s (`apply_be16_n`) |" % (
+                _n(_v(a, "m3_plain")), _n(_v(a, "m3_plain_arr")), _n(_v(a, "m3_plain_b"))),
+            "| base model through `Augmented` | %s (%.2fx) | %s | %s |" % (
+                _n(_v(a, "m3_base")), _v(a, "m3_base") / _v(a, "m3_plain"), _n(_v(a, "m3_base_t")),
+                _n(_v(a, "m3_base_b"))),
+            "| largest single term's extra (%s) | +%s | +%s | +%s |" % (
+                worst[1], _n(_v(a, "m3_extra_" + worst[0])), _n(_v(a, "m3_extra_%s_t" % worst[0])),
+                _n(_v(a, "m3_extra_%s_b" % worst[0]))),
+            "| every term | %s | %s | %s |" % (_n(_v(a, "m3_every")), _n(_v(a, "m3_every_t")), _n(_v(a, "m3_every_b"))),
+            "| every term, pure Python (`use_native(False)`) | %s | %s | |" % (
+                _n(_v(a, "m3_every_pure")), _n(_v(a, "m3_every_pure_t"))),
+            "| every term, float anchor | %s | %s | |" % (_n(_v(a, "m3_every_float")), _n(_v(a, "m3_every_float_t")))]
+    return ("Measured %s:" % a.date) + "\n\n" + "\n".join(rows) + "\n\n" + (
+        "Heap (Cortex-M3, `.mpy` executed in place): the module %s (fixedpoint %s more); the first model, which "
+        "imports the native kernels, %s; a second with every term %s; %s bytes allocated per sample; worst error "
+        "against float64 with every term %.2f output LSB (RMS %.2f, in the VM)." % (
+            _kb(a.ram_module), _kb(a.ram_fixedpoint), _kb(a.ram_first), _kb(a.ram_second), a.alloc, _v(a, "worst"),
+            _v(a, "rms")))
 
 
 def augment_shrink_words(r):
@@ -517,7 +572,7 @@ BLOCKS.update({
     ("README.md", "augment-shrink"): augment_shrink,
     ("README.md", "augment-cost"): augment_cost,
     ("docs/augment.md", "augment-shrink-words"): augment_shrink_words,
-    ("docs/augment.md", "augment-cost"): augment_cost,
+    ("docs/augment.md", "augment-cost"): augment_cost_page,
     ("docs/simgap.md", "simgap-speed"): simgap_speed,
     ("docs/ram.md", "ram-targets"): ram_targets,
     ("docs/ram.md", "ram-steps"): ram_steps,
