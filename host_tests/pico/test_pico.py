@@ -12,6 +12,7 @@ import random
 import sys
 
 import pytest
+from paths import skip_unless_ci
 
 from tempcomp import fixedpoint as fp
 from tools import REPO
@@ -25,7 +26,7 @@ import vboard_sensors as truth  # noqa: E402  (the parts' constants; runs on CPy
 def pico():
     why = picoctl.missing()
     if why:
-        pytest.skip("virtual Pico cannot run: " + why)
+        skip_unless_ci("virtual Pico cannot run: " + why)
     p = picoctl.PicoInterp()
     yield p
     p.close()

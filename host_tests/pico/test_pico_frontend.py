@@ -9,7 +9,8 @@ import os
 import subprocess
 
 import pytest
-from vboard_line import NODE, SERVER, VirtualBoard
+from paths import skip_unless_ci
+from vboard_line import CEILING, NODE, SERVER, VirtualBoard
 
 from tools.board import picoctl
 
@@ -18,7 +19,7 @@ from tools.board import picoctl
 def firmware():
     why = picoctl.missing()
     if why:
-        pytest.skip("virtual Pico cannot run: " + why)
+        skip_unless_ci("virtual Pico cannot run: " + why)
 
 
 def pico(run, **kw):
@@ -72,7 +73,7 @@ def test_stop_stops_only_the_pico_its_pid_file_names(tmp_path):
         r = subprocess.run([NODE, str(SERVER), "--board", "pico", "--stop", "--pidfile", str(own)],
                            capture_output=True, text=True, timeout=30)
         assert r.returncode == 0 and "stopped" in r.stdout, r.stdout + r.stderr
-        p.proc.wait(10)
+        p.proc.wait(CEILING)
         assert vm.proc.poll() is None
         assert vm.mpremote("exec", "print(6 * 7)").stdout.strip() == "42"
         assert not (tmp_path / "pico" / "world.sock").exists()
