@@ -48,15 +48,13 @@ REFERENCE = {
     ("docs/store.md", "| what | error |"): "errors",
     ("docs/store.md", "| offset | size | field | meaning |"): "the binary format (checked by test_store_format)",
     ("docs/security.md", "| attack | what happens | test |"): "the virtual board's threat model",
+    ("docs/security.md", "| attack | what holds | test |"): "the virtual Pico's threat model",
     ("docs/simgap.md", "| situation | planted (truth) | noise |"): "the wander benchmark's situations (design)",
     ("docs/host-libraries.md", "| module | was | now |"): "libraries that replaced home-made code",
     ("docs/host-libraries.md", "| module | what it does by hand | why |"): "what is kept, and why",
 }
 # figure tables not rendered from the record yet, with what it takes: each one is a known gap
 PENDING = {
-    ("README.md", "| cycles per call, RP2040 (Cortex-M0+, 125 MHz) | value | target |"):
-        "tools/bench/pico.py reports only some of these rows, with no keys; give each row a key, run "
-        "`python -m tools bench pico` and add a template (tools/bench/figures.py)",
 }
 HISTORY = {
     ("docs/ram.md", "| boot | before | after |"): "the mpu_tcc change, before and after (2026-11-25)",
