@@ -196,10 +196,18 @@ class NoiseModel:
         t = avar_terms(m, self.s2, self.q, self.g2, self.phi)
         return t["white"] + t["random_walk"] + t["bias_instability"]
 
-    def to_json(self, unit, time_unit, ad=None, fit=None):
+    def to_json(self, unit, time_unit, ad=None, fit=None, stride=1):
         """The `noise_model` JSON of one axis: each term in its IEEE unit and the averaging time
-        where it dominates the fitted Allan deviation."""
+        where it dominates the fitted Allan deviation.
+
+        stride k > 1: the model was estimated on every k-th row of the log (rows.stride), so
+        its sample is k of the log's steps (dt = sample_period). Dropping rows leaves each
+        row's white noise as it was (sigma is the log's own), while a walk's increments add
+        over the k steps (q is per model sample; K and tau_c are physical either way). The
+        angle/velocity random walk N = sigma sqrt(step) is the log's: read at its own step,
+        dt / k, not at dt (that would overstate it sqrt(k) times)."""
         dt = self.dt
+        step = dt / max(1, int(stride))
         tu = time_unit
         m = np.geomspace(1, max(2.0, ad["m"][-1] if ad is not None and ad["m"].size else 1e4), 200)
         terms = avar_terms(m, self.s2, self.q, self.g2, self.phi)
@@ -212,10 +220,11 @@ class NoiseModel:
 
         out = {
             "white": {"sigma": float(np.sqrt(self.s2)), "unit": unit,
-                      "N": float(np.sqrt(self.s2 * dt)), "N_unit": f"{unit}*sqrt({tu})",
+                      "N": float(np.sqrt(self.s2 * step)), "N_unit": f"{unit}*sqrt({tu})",
                       "read_at": float(dt), "dominates_to": _last_dom(m * dt, terms["white"] / tot)},
             "random_walk": None, "bias_instability": None,
-            "averaging_time_unit": tu, "sample_period": float(dt), "method":
+            "averaging_time_unit": tu, "sample_period": float(dt), "stride": max(1, int(stride)),
+            "log_sample_period": float(step), "method":
                 "state-space likelihood (white + bias random walk + first-order Gauss-Markov), "
                 "steady-state Kalman innovations"}
         if self.q > 0:
