@@ -43,10 +43,6 @@ class Problem:
         self.runs_m = self.runs_t[m]
         self._run_starts_m = np.flatnonzero(np.r_[False, np.diff(self.runs_m) != 0])
         self._idx = [np.flatnonzero(self.fold_m == f) for f in range(self.nfold)]
-        # The same rows as views where a segment is contiguous (prep.folds makes them so):
-        # its Gram matrix then needs no copy of the filtered design.
-        self._rows = [slice(int(i[0]), int(i[-1]) + 1) if i.size and i[-1] - i[0] + 1 == i.size
-                      else i for i in self._idx]
         # A held-out segment scores only where the other segments have been: rows at a
         # temperature (or input) only that segment reaches would judge extrapolation, and a
         # shape that happens to bend the base model's extrapolation would read as an effect.
@@ -190,8 +186,8 @@ class Problem:
         X, scale, Xs, nlev, st0 = self._train_design(axis, blocks, model)
         y = self._yw(axis, model, st0)
         yr = self.y_t[self.train.mask, axis]
-        Gf = [Xs[i].T @ Xs[i] for i in self._rows]
-        bf = [Xs[i].T @ y[i] for i in self._rows]
+        Gf = [Xs[i].T @ Xs[i] for i in self._idx]
+        bf = [Xs[i].T @ y[i] for i in self._idx]
         G, b = sum(Gf), sum(bf)
         r_cv = np.empty_like(y)
         B = 0 if model.is_white else model.memory()
