@@ -47,7 +47,7 @@ from tempcomp.mpu6xxx_parts import (
     TEMP_SENS,
     TEMP_ZERO,
     WHO_AM_I,
-    MPUError,
+    MPUError,  # noqa: F401  (re-exported: tempcomp.mpu6xxx.MPUError is what users catch)
     by_name,
     by_who_am_i,
     celsius100,
@@ -123,20 +123,17 @@ class MPU6xxx:
         if part is None:
             row = by_who_am_i(who)
             if row is None:
-                raise MPUError(
-                    "no known MPU-6xxx part at I2C address 0x%02x: WHO_AM_I is 0x%02x; for a "
-                    "clone name the part it copies, e.g. part='MPU-6500' (known: %s)"
-                    % (address, who, ", ".join(names()))
-                )
+                from tempcomp.mpu6xxx_faults import unknown_part
+
+                raise unknown_part(address, who)
         else:
             row = by_name(part)
             if row is None:
                 raise ValueError("unknown part %r; known: %s" % (part, ", ".join(names())))
             if row[WHO_AM_I] != who:
-                warn(
-                    "part at 0x%02x answers WHO_AM_I 0x%02x, not 0x%02x: driving it with the %s "
-                    "layout as asked" % (address, who, row[WHO_AM_I], row[NAME])
-                )
+                from tempcomp.mpu6xxx_faults import other_part
+
+                warn(other_part(address, who, row[WHO_AM_I], row[NAME]))
         self.part = row[NAME]
         self._row = row
         a0 = row[ACCEL_OFFS]
@@ -177,10 +174,9 @@ class MPU6xxx:
             if a == b:
                 return a
             a, b = b, a
-        raise MPUError(
-            "offset registers read differently %d times in a row (bus noise? check pull-ups and "
-            "wiring); nothing written" % (_READS + 1)
-        )
+        from tempcomp.mpu6xxx_faults import unsteady_offsets
+
+        raise unsteady_offsets(_READS + 1)
 
     def offsets(self):
         """((gx, gy, gz), (ax, ay, az)) the part holds: signed register values."""
@@ -197,9 +193,9 @@ class MPU6xxx:
         if b[0] != w[0] or b[1] != w[1]:
             self._dev.read_into(reg, b)  # a corrupted read-back is not a failed write: ask again
         if b[0] != w[0] or b[1] != w[1]:
-            raise MPUError(
-                "register 0x%02x reads back 0x%02x%02x after writing 0x%02x%02x" % (reg, b[0], b[1], w[0], w[1])
-            )
+            from tempcomp.mpu6xxx_faults import read_back
+
+            raise read_back(reg, b, w)
 
     def _write_offsets(self, words):
         # words: gyro x y z, accel x y z (signed). All or nothing: on any fault the registers
@@ -215,17 +211,15 @@ class MPU6xxx:
             for i in range(6):
                 if now[i] != words[i]:
                     done = 6
-                    raise MPUError(
-                        "offset register 0x%02x holds %d, not the %d written"
-                        % (self._oregs[i], now[i], words[i])
-                    )
+                    from tempcomp.mpu6xxx_faults import not_held
+
+                    raise not_held(self._oregs[i], now[i], words[i])
         except BaseException as e:
             bad = self._rollback(old, done)
             if bad is not None:
-                raise MPUError(
-                    "%s; restoring the previous offsets failed too (%s): power-cycle the part"
-                    % (e, bad)
-                )
+                from tempcomp.mpu6xxx_faults import rollback_failed
+
+                raise rollback_failed(e, bad)
             raise
 
     def _rollback(self, old, upto):
@@ -480,7 +474,9 @@ class MPU6xxx:
         True when it wrote (verified, all-or-nothing) what ``model.registers(t)`` gives.
         """
         if self._dev.read_u8(_PWR_MGMT_1) & 0x40:  # SLEEP (RM-MPU-6000A 4.28)
-            raise MPUError("the part is asleep (PWR_MGMT_1.SLEEP): its temperature is stale")
+            from tempcomp.mpu6xxx_faults import asleep
+
+            raise asleep()
         t = self.temp_raw()
         last = self._follow_t
         if last is not None and abs(t - last) < step_c100 * self._tsens // 10000:
@@ -505,10 +501,9 @@ class MPU6xxx:
         if len(ints) != 10:
             raise ValueError("an MPU6xxx record has 10 ints, got %d" % len(ints))
         if ints[0] != self.who_am_i:
-            raise ValueError(
-                "saved offsets belong to a part with WHO_AM_I 0x%02x, this one is 0x%02x"
-                % (ints[0], self.who_am_i)
-            )
+            from tempcomp.mpu6xxx_faults import other_who_am_i
+
+            raise other_who_am_i(ints[0], self.who_am_i)
         fac = tuple(ints[7:10])
         if fac != tuple(self.factory):
             held = tuple(self._read_offsets()[3:])
@@ -520,11 +515,13 @@ class MPU6xxx:
                 # the known fault: the part rewrote its Y trim (now, or when the record was
                 # made). The saved offsets are absolute words, right whatever the register held.
                 self.trim_changes += 1
-                warn("ICM-20602 accel y trim reads %d, saved factory value %d: the part changed it by "
-                     "itself (a known ICM-20602 fault); the saved offsets are written back, call "
-                     "check(every_ms=1000) from your loop to keep them" % (self.factory[1], fac[1]))
+                from tempcomp.mpu6xxx_faults import trim_rewritten
+
+                warn(trim_rewritten(self.factory[1], fac[1]))
             else:
-                warn("factory trim %r differs from the saved %r: a different part?" % (self.factory, fac))
+                from tempcomp.mpu6xxx_faults import other_factory
+
+                warn(other_factory(self.factory, fac))
         return self.apply(ints[1:4], ints[4:7])
 
     def save(self, store, name="mpu6xxx"):
