@@ -51,7 +51,6 @@ from tempcomp.mpu6xxx_parts import (
     by_name,
     by_who_am_i,
     celsius100,
-    names,
     warn,
     zro_limit,
 )
@@ -129,7 +128,9 @@ class MPU6xxx:
         else:
             row = by_name(part)
             if row is None:
-                raise ValueError("unknown part %r; known: %s" % (part, ", ".join(names())))
+                from tempcomp.mpu6xxx_faults import unknown_name
+
+                raise unknown_name(part)
             if row[WHO_AM_I] != who:
                 from tempcomp.mpu6xxx_faults import other_part
 
@@ -379,7 +380,9 @@ class MPU6xxx:
             if val is None:
                 continue
             if val not in opts:
-                raise ValueError("%s must be one of %r, got %r" % (what, opts, val))
+                from tempcomp.mpu6xxx_faults import not_one_of
+
+                raise not_one_of(what, opts, val)
             r = self._dev.read_u8(reg)
             self._write_u8(reg, (r & ~0x18) | opts.index(val) << 3)
 
@@ -423,7 +426,9 @@ class MPU6xxx:
         ca = self._ca
         cg = self._cg
         if ca is None or cg is None:
-            raise ValueError("call compensate(model) first")
+            from tempcomp.mpu6xxx_faults import not_compensated
+
+            raise not_compensated()
         b = self._d14
         self._dev.read_into(_ACCEL_XOUT_H, b)
         t = ((b[6] << 8 | b[7]) ^ 0x8000) - 0x8000
@@ -444,7 +449,9 @@ class MPU6xxx:
                 # 'is': equal ints below 128 are one object (MicroPython: immediate; CPython:
                 # cached), so only a new value, a float or a bool is checked here, once
                 if type(n) is not int or not 0 < n <= _T_CNT:
-                    raise ValueError("temp_avg must be an int from 1 to 127, got %r" % (n,))
+                    from tempcomp.mpu6xxx_faults import bad_temp_avg
+
+                    raise bad_temp_avg(n)
                 self._tdiv = n
             self._tp = n
         # both Compensators' 3-axis numbers (fixedpoint's burst path: gain limbs, offset term
@@ -499,7 +506,9 @@ class MPU6xxx:
     def apply_ints(self, ints):
         """Re-apply a to_ints() record (one call at boot); returns the offsets written."""
         if len(ints) != 10:
-            raise ValueError("an MPU6xxx record has 10 ints, got %d" % len(ints))
+            from tempcomp.mpu6xxx_faults import record_length
+
+            raise record_length(len(ints))
         if ints[0] != self.who_am_i:
             from tempcomp.mpu6xxx_faults import other_who_am_i
 
@@ -541,9 +550,11 @@ class MPU6xxx:
 
 
 def _check3(what, v):
-    if len(v) != 3:
-        raise ValueError("%s needs 3 values, got %r" % (what, v))
+    ok = len(v) == 3
     for x in v:
-        if not isinstance(x, int) or not -32768 <= x <= 32767:
-            raise ValueError("%s values must be int16 register values, got %r" % (what, v))
+        ok = ok and isinstance(x, int) and -32768 <= x <= 32767
+    if not ok:
+        from tempcomp.mpu6xxx_faults import not_registers
+
+        raise not_registers(what, v)
     return v

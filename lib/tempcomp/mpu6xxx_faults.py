@@ -1,4 +1,4 @@
-"""The MPU family's long fault and warning messages, in words: imported when one is raised.
+"""The MPU family's fault and warning messages, in words: imported when one is raised.
 
 A message is a string object on the heap for as long as the module that holds it is loaded
 (about 1.3 bytes of heap per character from ``.mpy``). The driver (``tempcomp.mpu6xxx``) and
@@ -19,6 +19,10 @@ def unknown_part(address, who):
     return MPUError(
         "no known MPU-6xxx part at I2C address 0x%02x: WHO_AM_I is 0x%02x; for a clone name the part "
         "it copies, e.g. part='MPU-6500' (known: %s)" % (address, who, ", ".join(names())))
+
+
+def unknown_name(part):
+    return ValueError("unknown part %r; known: %s" % (part, ", ".join(names())))
 
 
 def other_part(address, who, row_who, name):
@@ -61,6 +65,28 @@ def trim_rewritten(now, saved):
 
 def other_factory(now, saved):
     return "factory trim %r differs from the saved %r: a different part?" % (now, saved)
+
+
+def not_registers(what, v):
+    if len(v) != 3:
+        return ValueError("%s needs 3 values, got %r" % (what, v))
+    return ValueError("%s values must be int16 register values, got %r" % (what, v))
+
+
+def record_length(n):
+    return ValueError("an MPU6xxx record has 10 ints, got %d" % n)
+
+
+def not_one_of(what, opts, val):
+    return ValueError("%s must be one of %r, got %r" % (what, opts, val))
+
+
+def not_compensated():
+    return ValueError("call compensate(model) first")
+
+
+def bad_temp_avg(n):
+    return ValueError("temp_avg must be an int from 1 to 127, got %r" % (n,))
 
 
 # -- offset(T) resumed from record mpu_tcc (tempcomp.mpu6xxx_rt) -----------------------------

@@ -90,11 +90,6 @@ def crc(data):
     return _crc32(data) & 0xFFFFFFFF
 
 
-def pow2(f):
-    """2**f as a float, for f of either sign."""
-    return float(1 << f) if f >= 0 else 1.0 / (1 << -f)
-
-
 class Record:
     """One sensor's calibration as loaded: ``values`` array('i'), ``frac`` array('b'), metadata."""
 
@@ -116,12 +111,14 @@ class Record:
 
     def real(self, i):
         """Value i as a float: values[i] / 2**frac[i] (allocates: set-up time only)."""
-        return self.values[i] * pow2(-self.frac[i])
+        f = self.frac[i]
+        return self.values[i] / float(1 << f) if f >= 0 else self.values[i] * float(1 << -f)
 
     def __repr__(self):
-        return "Record(%r, part=%r, serial=%r, kind=%d, values=%r, frac=%r, t=%d..%d unit %d, counter=%d, time=%d)" % (
-            self.name, self.part, self.serial, self.kind, tuple(self.values), tuple(self.frac),
-            self.t_lo, self.t_hi, self.t_unit, self.counter, self.time)
+        # the words are the checker's (tempcomp.store_check): a boot never prints a Record
+        from tempcomp.store_check import record_repr
+
+        return record_repr(self)
 
 
 def entry_size(nb, pb, sb, m):
