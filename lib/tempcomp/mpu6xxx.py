@@ -63,28 +63,26 @@ except ImportError:
         return x
 
 
-# a millisecond clock for check(every_ms=): MicroPython's ticks, CircuitPython's supervisor
-# ticks (they wrap at 2**29), else the monotonic clock
+# a millisecond clock for check(every_ms=), bound once: MicroPython's ticks, CircuitPython's
+# supervisor ticks (they wrap at 2**29), else the monotonic clock (CPython). The fallbacks are
+# defined only where they are used: a MicroPython board never holds them.
 try:
-    import supervisor as _supervisor  # pyright: ignore[reportMissingImports]
+    from time import ticks_diff as _ticks_diff  # pyright: ignore[reportAssignmentType]
+    from time import ticks_ms as _ticks_ms
 except ImportError:
-    _supervisor = None
+    try:
+        from supervisor import ticks_ms as _ticks_ms  # pyright: ignore[reportMissingImports]
 
+        def _ticks_diff(a, b):
+            return ((a - b + 0x10000000) & 0x1FFFFFFF) - 0x10000000
 
-def _ticks_ms():
-    f = getattr(_time, "ticks_ms", None) or getattr(_supervisor, "ticks_ms", None)
-    if f is not None:
-        return f()
-    return int(_time.monotonic() * 1000)  # pyright: ignore[reportAttributeAccessIssue]
+    except ImportError:
 
+        def _ticks_ms():
+            return int(_time.monotonic() * 1000)  # pyright: ignore[reportAttributeAccessIssue]
 
-def _ticks_diff(a, b):
-    f = getattr(_time, "ticks_diff", None)
-    if f is not None:
-        return f(a, b)
-    if _supervisor is not None:
-        return ((a - b + 0x10000000) & 0x1FFFFFFF) - 0x10000000
-    return a - b
+        def _ticks_diff(a, b):
+            return a - b
 
 
 # Register map (RM-MPU-6000A / RM-MPU-9250): the registers only the driver uses; the capture's

@@ -63,13 +63,6 @@ _MALFORMED = (
 )
 
 
-def record_repr(r):
-    """``repr()`` of a ``Record`` (tempcomp.store_format), for the REPL and messages."""
-    return "Record(%r, part=%r, serial=%r, kind=%d, values=%r, frac=%r, t=%d..%d unit %d, counter=%d, time=%d)" % (
-        r.name, r.part, r.serial, r.kind, tuple(r.values), tuple(r.frac), r.t_lo, r.t_hi, r.t_unit, r.counter,
-        r.time)
-
-
 def warn(msg):
     try:
         import warnings  # pyright: ignore[reportMissingImports]  (CPython only)

@@ -115,10 +115,9 @@ class Record:
         return self.values[i] / float(1 << f) if f >= 0 else self.values[i] * float(1 << -f)
 
     def __repr__(self):
-        # the words are the checker's (tempcomp.store_check): a boot never prints a Record
-        from tempcomp.store_check import record_repr
-
-        return record_repr(self)
+        return "Record(%r, part=%r, serial=%r, kind=%d, values=%r, frac=%r, t=%d..%d unit %d, counter=%d, time=%d)" % (
+            self.name, self.part, self.serial, self.kind, tuple(self.values), tuple(self.frac),
+            self.t_lo, self.t_hi, self.t_unit, self.counter, self.time)
 
 
 def entry_size(nb, pb, sb, m):
