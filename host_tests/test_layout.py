@@ -1,6 +1,7 @@
 """The tree explains itself: every tools/ folder says what it is for, and the import rules between
 the roles hold (lib/ never imports the host; the diagnosis never sees how its benchmark is made);
-inside lib/, imports go one way (no cycles) and no module takes another's private names."""
+inside lib/, imports go one way (no cycles) and no module takes another's private names or reaches
+into another's objects for their private attributes."""
 import ast
 import pathlib
 
@@ -301,6 +302,91 @@ def test_the_lib_rules_catch_a_violation(tmp_path):
         "pkg/high.py:1 imports _helper from pkg.low",
         "pkg/sub/__init__.py:2 reads pkg.low._helper",
         "pkg/sub/leaf.py:2 reads pkg.low._helper",
+    ]
+
+
+# ---- lib/: no module reaches into another's objects -------------------------------------------
+# A private attribute (self._x, a _method, a class-level _NAME) is its module's business: when the
+# driver needs a Compensator's per-sample numbers, fixedpoint gives them a public name (burst3,
+# export()). Read statically: an obj._x read or written in a module that never defines _x itself,
+# while another lib module does. (When both define an _x of the same name the owner cannot be
+# told without types; that case is not flagged.)
+
+# Known, and someone else's to fix: issue 25's augmented model (lib/tempcomp/augment*.py, being
+# rewritten in its own branch) reads fixedpoint.Compensator's internals for its kernels, and its
+# kernel mixins the model's own. test_the_known_private_reads_are_still_there fails once they
+# are gone, so that this list only shrinks.
+KNOWN_PRIVATE_READS = ("tempcomp/augment",)
+
+
+def lib_private_attribute_owners(lib):
+    """{module: private attribute names it defines}: assigned on self, or a method or class
+    attribute in one of its classes."""
+    out = {}
+    for name, path in lib_modules(lib).items():
+        own = set()
+        for node in ast.walk(ast.parse(path.read_text(), str(path))):
+            if isinstance(node, ast.ClassDef):
+                for b in node.body:
+                    if isinstance(b, (ast.FunctionDef, ast.AsyncFunctionDef)) and _private(b.name):
+                        own.add(b.name)
+                    elif isinstance(b, ast.Assign):
+                        own.update(t.id for t in b.targets if isinstance(t, ast.Name) and _private(t.id))
+            elif (isinstance(node, ast.Attribute) and isinstance(node.ctx, ast.Store) and _private(node.attr)
+                  and isinstance(node.value, ast.Name) and node.value.id == "self"):
+                own.add(node.attr)
+        out[name] = own
+    return out
+
+
+def lib_private_attribute_reads(lib):
+    """'file:line reads|writes obj._x (defined in owner)' for every access in one lib module of a
+    private attribute that only other lib modules define."""
+    mods = lib_modules(lib)
+    owners = lib_private_attribute_owners(lib)
+    bad = []
+    for name, path in mods.items():
+        for node in ast.walk(ast.parse(path.read_text(), str(path))):
+            if not (isinstance(node, ast.Attribute) and _private(node.attr)) or node.attr in owners[name]:
+                continue
+            others = sorted(m for m, own in owners.items() if m != name and node.attr in own)
+            if others:
+                bad.append("%s:%d %s %s (defined in %s)" % (
+                    path.relative_to(lib), node.lineno, "writes" if isinstance(node.ctx, ast.Store) else "reads",
+                    ast.unparse(node), ", ".join(others)))
+    return sorted(bad)
+
+
+def test_lib_modules_read_no_private_attributes_of_another():
+    bad = [b for b in lib_private_attribute_reads(ROOT / "lib") if not b.startswith(KNOWN_PRIVATE_READS)]
+    assert not bad, "private attributes used across lib/ modules (give them a public name or a method in " \
+        "the module that owns them):\n  " + "\n  ".join(bad)
+
+
+def test_the_known_private_reads_are_still_there():
+    found = lib_private_attribute_reads(ROOT / "lib")
+    gone = [k for k in KNOWN_PRIVATE_READS if not any(b.startswith(k) for b in found)]
+    assert not gone, "no private reads left in %s: remove it from KNOWN_PRIVATE_READS" % gone
+
+
+def test_the_private_attribute_rule_catches_a_violation(tmp_path):
+    pkg = tmp_path / "pkg"
+    pkg.mkdir()
+    (pkg / "__init__.py").write_text("")
+    (pkg / "core.py").write_text(
+        "class Comp:\n    _LIMIT = 3\n    def __init__(self):\n        self._p = [0]\n        self.public = 1\n"
+        "    def _step(self):\n        return self._p\n")
+    (pkg / "driver.py").write_text(
+        "from pkg.core import Comp\nclass Driver:\n    def __init__(self):\n        self._c = Comp()\n"
+        "    def read(self):\n        c = self._c\n        c._step()\n        c._p = c.public\n"
+        "        return c._p[0], Comp._LIMIT\n")
+    (pkg / "mixin.py").write_text("class Extra:\n    def more(self):\n        return self._c\n")
+    assert lib_private_attribute_reads(tmp_path) == [
+        "pkg/driver.py:7 reads c._step (defined in pkg.core)",
+        "pkg/driver.py:8 writes c._p (defined in pkg.core)",
+        "pkg/driver.py:9 reads Comp._LIMIT (defined in pkg.core)",
+        "pkg/driver.py:9 reads c._p (defined in pkg.core)",
+        "pkg/mixin.py:3 reads self._c (defined in pkg.driver)",
     ]
 
 

@@ -514,6 +514,12 @@ class Compensator:
     raw LSB per physical unit), each a number or an exact (num, den) pair of ints. t_cal: calibrated span of the reading; t_in: the readings the
     bounds are proven for (default: t_cal with CLAMP, t_cal widened by half its span with
     EXTRAPOLATE). raw_range: the raw codes (at most 65536 of them, signed or unsigned).
+
+    ``burst3``: for 3 signed int16 axes, the 11 numbers the unrolled burst path reads (per axis
+    the gain's two limbs and the offset term with the rounding half; then K and S), kept current
+    by ``update()`` in the same list (or 32-bit array), so a driver may unpack it per sample
+    (``tempcomp.mpu6xxx.read_compensated``); None for other Compensators. ``export()`` gives
+    every number of the per-sample state, for a boot that resumes it without the set-up.
     """
 
     def __init__(
@@ -631,20 +637,20 @@ class Compensator:
         self.clamped = 0
         self._t = None
         # the unrolled 3-axis burst path needs signed int16 raw codes (raw range middle 0)
-        self._p3 = None
+        self.burst3 = None
         self._nk = None
         if n == 3 and mid == 0:
             nk = _kernels() if _native is not False else None
             if nk is not None:
                 # native kernels read the 11 numbers (and the batch's stride and output tag)
                 # from a 32-bit array; the pure path unpacks a list faster
-                self._p3 = nk.params()
-                self._nk = nk.kernels(self._p3, self._check_n)
+                self.burst3 = nk.params()
+                self._nk = nk.kernels(self.burst3, self._check_n)
             else:
-                self._p3 = [0] * 11
+                self.burst3 = [0] * 11
         if min(self._fd) >= 0:
             # every scale constant: update() is Horner only
-            self._fill_p3()
+            self._fill_burst3()
             self.update = self._update_fast
         self.update(self._t_lo)
         if mid != 0:
@@ -654,7 +660,7 @@ class Compensator:
         elif self._nk is not None:
             # closures over the parameter array: calling them allocates nothing
             self.apply_be16, self.apply_be16_n = self._nk
-        elif self._p3 is not None:
+        elif self.burst3 is not None:
             self.apply_be16 = self._be16_3
             self.apply_be16_n = self._be16_3n
 
@@ -777,10 +783,10 @@ class Compensator:
             # floor, not round: apply()'s floor of r*gl/2**15 errs the other way, so the two
             # truncations partly cancel
             self._b[k] = b
-        self._fill_p3()
+        self._fill_burst3()
 
-    def _fill_p3(self):
-        p = self._p3
+    def _fill_burst3(self):
+        p = self.burst3
         if p is not None:
             j = 0
             for k in range(3):
@@ -790,6 +796,16 @@ class Compensator:
                 j += 3
             p[9] = self._k
             p[10] = self._s
+
+    def export(self):
+        """(t_lo, t_hi, fxm, fxl, fxs, half, k, s, gh, gl, fd, fs, fq): every number ``update()``
+        and the 3-axis burst path read, for 3 signed int16 axes whose scales do not vary with t;
+        None for any other Compensator. ``tempcomp.mpu6xxx_tc.compiled()`` saves them, and
+        ``tempcomp.mpu6xxx_rt`` resumes them without this module (the same integers)."""
+        if self.burst3 is None or min(self._fd) < 0:
+            return None
+        return (self._t_lo, self._t_hi, self._fxm, self._fxl, self._fxs, self._half, self._k, self._s,
+                tuple(self._gh), tuple(self._gl), tuple(self._fd), tuple(self._fs), tuple(self._fq))
 
     def _update_fast(self, t):
         # update() when every scale is constant: the offset terms by Horner (_set_fast's
@@ -811,7 +827,7 @@ class Compensator:
         fd = self._fd
         fs = self._fs
         bb = self._b
-        p = self._p3
+        p = self.burst3
         half = self._half
         n = self.axes
         k = 0
@@ -905,7 +921,7 @@ class Compensator:
     def _be16_3n(self, buf, out, n, stride=6):
         # apply_be16_n for the unrolled 3-axis case: _be16_3's arithmetic (and bound) per sample
         self._check_n(buf, out, n, stride)
-        g0, l0, b0, g1, l1, b1, g2, l2, b2, k, s = self._p3  # type: ignore[misc]  # set when bound
+        g0, l0, b0, g1, l1, b1, g2, l2, b2, k, s = self.burst3  # type: ignore[misc]  # set when bound
         i = 0
         j = 0
         m = 3 * n
@@ -924,7 +940,7 @@ class Compensator:
         # unpacked onto the stack (no allocation) and the rounding half folded into the offset
         # term: about 1.6x the cost of a bare unpack in the VM, where the loop costs 2.5x.
         # Bound: |v*g| <= 2**28, |(v*l) >> k| < 2**15, |b - half| <= 2**29 + 2**23: sum < 2**30.
-        g0, l0, b0, g1, l1, b1, g2, l2, b2, k, s = self._p3  # type: ignore[misc]  # set when bound
+        g0, l0, b0, g1, l1, b1, g2, l2, b2, k, s = self.burst3  # type: ignore[misc]  # set when bound
         v = ((buf[0] << 8 | buf[1]) ^ 0x8000) - 0x8000
         out[0] = (v * g0 + ((v * l0) >> k) - b0) >> s
         v = ((buf[2] << 8 | buf[3]) ^ 0x8000) - 0x8000

@@ -346,11 +346,11 @@ class MLX90609:
         self._comp = None
         self._zro_q = None
         self.table = None
-        self._table_error = None
+        self.table_error = None  # why the EEPROM gave no table (a ValueError), None when it did
         try:
             table = decode_eeprom(self.cells)
         except ValueError as e:
-            self._table_error = e
+            self.table_error = e
         else:
             self.use_table(table)
 
@@ -426,13 +426,13 @@ class MLX90609:
         self._comp = comp
         self._zro_q = off
         self.table = table
-        self._table_error = None
+        self.table_error = None
         self.zro_shift = float(zro_shift)
         self._count = 0
 
     def _need_table(self):
         if self._comp is None:
-            raise ValueError(str(self._table_error) if self._table_error else "MLX90609: no table")
+            raise ValueError(str(self.table_error) if self.table_error else "MLX90609: no table")
         return self._comp
 
     def _table(self):

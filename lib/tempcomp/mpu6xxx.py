@@ -12,6 +12,7 @@ Usage (the board lying still on any face, any side up)::
     gyro, accel = imu.calibrate()    # captures ~1 s, writes and verifies the offsets
     imu.offsets()                    # what the part now holds: the same two tuples
     imu.apply(gyro, accel)           # at boot: write saved offsets (verified)
+    imu.written                      # the six words last written here (None before any)
 
 Units: gyro offset registers count 1/32.8 dps (the +-1000 dps unit) whatever the range; accel
 offset registers are 16-bit words in 2048 LSB/g (bits 15..1, 0.98 mg a step) whose bit 0 is
@@ -149,7 +150,7 @@ class MPU6xxx:
         self._tsens2 = 2 * row[TEMP_SENS]
         self._tzero = row[TEMP_ZERO]
         self._follow_t = None
-        self._target = None
+        self.written = None  # the six offset words last written here and verified (check() keeps them)
         self._checked = None  # ticks_ms of the last check(every_ms=...)
         self.trim_changes = 0  # offset registers the part changed by itself, found by check()
         # the accel offsets hold the factory trim after power-on: read it once, here
@@ -244,7 +245,7 @@ class MPU6xxx:
         for k in range(3):
             words[3 + k] = (a[k] & ~1) | (cur[3 + k] & 1)  # bit 0 is reserved: keep the part's
         self._write_offsets(words)
-        self._target = words
+        self.written = words
         return (tuple(words[:3]), tuple(words[3:]))
 
     def check(self, every_ms=None):
@@ -261,7 +262,7 @@ class MPU6xxx:
                 return 0
             self._checked = now
         cur = self._read_offsets()
-        want = self._target
+        want = self.written
         if want is None:
             want = cur[:3] + list(self.factory)
         n = 0
@@ -321,7 +322,7 @@ class MPU6xxx:
         words = c.calibrate(cur, self.factory, t, gyro_spread_dps, accel_spread_mg, max_tilt_mg, max_bias_dps,
                             max_turn_dps)
         self._write_offsets(words)
-        self._target = words
+        self.written = words
         return (tuple(words[:3]), tuple(words[3:]))
 
     def bias_point(self, packets=1000, settle_ms=50, gyro_spread_dps=5, accel_spread_mg=150, max_tilt_mg=150,
@@ -405,6 +406,10 @@ class MPU6xxx:
             ca, cg = resume(model, check, ranges, offs)
         self._comp_set(ca, cg)
 
+    def compensating(self):
+        """True once compensate() has set up read_compensated() (software offset(T))."""
+        return self._cg is not None
+
     def _comp_set(self, ca, cg):
         # the Compensators read_compensated() uses; its temperature block starts again, so the
         # first reading after compensate() is applied at once
@@ -455,14 +460,14 @@ class MPU6xxx:
         # both Compensators' 3-axis numbers (fixedpoint's burst path: gain limbs, offset term
         # with the rounding half, K = 15, S), unrolled as in Compensator._be16_3 and with its
         # bound: |v*g| <= 2**28, |(v*l) >> 15| < 2**15, |c| <= 2**29 + 2**23
-        g0, l0, c0, g1, l1, c1, g2, l2, c2, k, s = ca._p3  # type: ignore[misc]  # 3 int16 axes
+        g0, l0, c0, g1, l1, c1, g2, l2, c2, k, s = ca.burst3  # type: ignore[misc]  # 3 int16 axes
         v = ((b[0] << 8 | b[1]) ^ 0x8000) - 0x8000
         out[0] = (v * g0 + ((v * l0) >> k) - c0) >> s
         v = ((b[2] << 8 | b[3]) ^ 0x8000) - 0x8000
         out[1] = (v * g1 + ((v * l1) >> k) - c1) >> s
         v = ((b[4] << 8 | b[5]) ^ 0x8000) - 0x8000
         out[2] = (v * g2 + ((v * l2) >> k) - c2) >> s
-        g0, l0, c0, g1, l1, c1, g2, l2, c2, k, s = cg._p3  # type: ignore[misc]
+        g0, l0, c0, g1, l1, c1, g2, l2, c2, k, s = cg.burst3  # type: ignore[misc]
         v = ((b[8] << 8 | b[9]) ^ 0x8000) - 0x8000
         out[3] = (v * g0 + ((v * l0) >> k) - c0) >> s
         v = ((b[10] << 8 | b[11]) ^ 0x8000) - 0x8000
@@ -498,7 +503,7 @@ class MPU6xxx:
         The offsets are the ones last written (and verified) when there are any, so a trim the
         part changed by itself since (ICM-20602) is never saved; else what the part holds.
         """
-        o = list(self._target) if self._target is not None else self._read_offsets()
+        o = list(self.written) if self.written is not None else self._read_offsets()
         return [self.who_am_i] + o + list(self.factory)
 
     def apply_ints(self, ints):

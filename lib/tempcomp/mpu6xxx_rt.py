@@ -55,12 +55,12 @@ def model_hash(ints):
 
 
 class _State:
-    # what read_compensated() uses of a fixedpoint.Compensator (update, _p3, clamped), reading
+    # what read_compensated() uses of a fixedpoint.Compensator (update, burst3, clamped), reading
     # its numbers from the record itself (v: the loaded array, i: this Compensator's block)
     def __init__(self, v, i):
         self._v = v
         self._i = i
-        p = self._p3 = [0] * 11
+        p = self.burst3 = [0] * 11
         for k in range(3):
             p[3 * k] = v[i + _GH + k]
             p[3 * k + 1] = v[i + _GL + k]
@@ -85,7 +85,7 @@ class _State:
         self._t = t
         x = (t - v[i + _FXM]) << v[i + _FXL]
         hs = v[i + _FXS]
-        p = self._p3
+        p = self.burst3
         k = 0
         while k < 3:
             j = i + _FQ + 4 * k

@@ -85,6 +85,16 @@ s.mpu.read_compensated(buf)
 s.mpu.check(every_ms=1000)
 """
 
+# the same as a user's main.py writes it (README): every kind of part looked for (the board has
+# no SPI or ADC: both reported missing), the report printed
+BOOT_SENSORS_DEFAULT = """
+from tempcomp.sensors import restore
+s = restore(ram_board, "{store}")
+buf = [0] * 7
+s.mpu.read_compensated(buf)
+s.mpu.check(every_ms=1000)
+"""
+
 BOOT_DRIVER = """
 from tempcomp.mpu6xxx import MPU6xxx
 from tempcomp.mpu6xxx_tc import BiasModel
@@ -363,6 +373,8 @@ def _budgets(report, it, staged, how, frozen=False):
     report("AN385 `import tempcomp.session` from %s (budget %d KB)" % (how, BUDGET_SESSION // 1024),
            "%s (%s)" % (_kb(ses), "ok" if ses is not None and ses <= BUDGET_SESSION else "OVER"), "")
     for label, body in (("sensors.restore(board, which=mpu6xxx) + read_compensated", BOOT_SENSORS),
+                        ("sensors.restore(board) (every part looked for, report printed) + read_compensated",
+                         BOOT_SENSORS_DEFAULT),
                         ("MPU6xxx.restore + compensate(BiasModel) + read_compensated", BOOT_DRIVER),
                         ("MPU6xxx.restore + compensate(mpu_tcc) + read_compensated", BOOT_COMPILED),
                         ("calib_const.py (Store.export_module) + compensate(mpu_tcc) + read_compensated", BOOT_CONST),
