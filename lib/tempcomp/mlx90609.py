@@ -42,9 +42,11 @@ except ImportError:
         return x
 
 
-# fixedpoint first: from .py, its compile (the largest source) needs blocks of ~2 KB, and on the
-# 140 KB Cortex-M3 heap it found none once the two bus adapters were compiled before it
-# (MemoryError; docs/ram.md, host_tests/interp/test_ram.py)
+# fixedpoint first: from .py its compile (the largest source, 41 KB) is the import's peak, and on
+# the 140 KB Cortex-M3 heap, with the files read over mpremote's mount (the RAM bench's route), it
+# found no free block once the SPI adapter was compiled before it (MemoryError; 4 KB to spare in
+# this order). Read in place as from flash, either order has over 25 KB to spare (docs/ram.md,
+# host_tests/interp/test_ram.py).
 from tempcomp.fixedpoint import EXTRAPOLATE, Compensator, quadratic_through
 
 # isort: split
