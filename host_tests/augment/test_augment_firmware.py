@@ -1,6 +1,7 @@
 """The augmented model with every term on, on each interpreter the library targets (the wasm VM,
 MicroPython 1.27 firmware on a Cortex-M3 and M7 under qemu, CircuitPython 10.2.1): heap-locked
-samples, and results within the stated precision of float64 (single-precision set-up on the
+samples and bursts (the native kernels where the firmware has them), and results within the
+stated precision of float64 (single-precision set-up on the
 M3/M7 firmware moves a coefficient's last bits, not the output)."""
 import json
 
@@ -62,6 +63,24 @@ def ticked_locked():
     return err
 ticked(2)
 print('TICKS', 'ok' if ticked_locked() is None else 'FAIL')
+bufn = bytearray(b"\\x80\\x00\\x12\\x34\\x7f\\xff" * 16); outn = array('i', [0] * 48)
+def bursts(n):
+    # FIFO bursts of 16, the temperature reading changing between them
+    i = 0
+    while i < n:
+        a.apply_be16_n(2500 + i, bufn, outn, 16, 10, 3300, acc)
+        i += 1
+def bursts_locked():
+    err = None
+    micropython.heap_lock()
+    try:
+        bursts(8)
+    except MemoryError as e:
+        err = e
+    micropython.heap_unlock()
+    return err
+bursts(1)
+print('BURSTS', 'ok' if bursts_locked() is None else 'FAIL')
 i = 0
 while i < len(res):
     print('RES', res[i], res[i + 1], res[i + 2])
@@ -69,6 +88,7 @@ while i < len(res):
 """ % (json.dumps(m), json.dumps(rows)), timeout=600)
     assert "LOCK ok" in out.splitlines()
     assert "TICKS ok" in out.splitlines()
+    assert "BURSTS ok" in out.splitlines()
     y = np.array([ln.split()[1:] for ln in out.splitlines() if ln.startswith("RES ")], dtype=float)
     assert y.shape == (N, 3)
     want = devmodel.compensate(m, inp, F) * OUT_SCALE

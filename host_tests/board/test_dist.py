@@ -26,7 +26,8 @@ def test_dist_is_one_package_per_mpy_version_listing_every_module(package):
     root = json.load(open(os.path.join(REPO, "package.json")))
     assert pkg["version"] == root["version"] and pkg["deps"] == []
     # the viper kernels twice: Thumb-2 (armv7m) and, picked where that is refused, the M0+'s
-    want = sorted([rel[:-3] + ".mpy" for rel in build_mpy.lib_sources()] + ["tempcomp/native_m0.mpy"])
+    want = sorted([rel[:-3] + ".mpy" for rel in build_mpy.lib_sources()]
+                  + ["tempcomp/native_m0.mpy", "tempcomp/augment_native_m0.mpy", "tempcomp/augment_vrun_m0.mpy"])
     assert sorted(dst for dst, _ in pkg["urls"]) == want
     for dst, src in pkg["urls"]:
         assert dst == src  # relative to package.json: mip resolves it next to the manifest
@@ -35,7 +36,9 @@ def test_dist_is_one_package_per_mpy_version_listing_every_module(package):
         # arch bits (py/persistentcode.h: 4 armv6m, 5 armv7m): only the kernel modules carry
         # machine code; an armv6m .mpy loads on every ARM Cortex-M, an armv7m one not on an M0+
         arch = head[2] >> 2
-        assert arch == {"native.mpy": 5, "native_m0.mpy": 4, "thumb.mpy": 4}.get(os.path.basename(src), 0), src
+        assert arch == {"native.mpy": 5, "native_m0.mpy": 4, "thumb.mpy": 4, "augment_native.mpy": 5,
+                        "augment_native_m0.mpy": 4, "augment_thumb.mpy": 4, "augment_vrun.mpy": 5,
+                        "augment_vrun_m0.mpy": 4}.get(os.path.basename(src), 0), src
 
 
 def test_deploy_installs_mpy_by_default_and_py_on_request(tmp_path):
@@ -61,5 +64,6 @@ def test_mip_install_of_the_mpy_package_on_the_virtual_board(tmp_path, package):
     finally:
         vb.stop()
     files = eval(out.split("FILES", 1)[1].splitlines()[0])
-    assert files == sorted([os.path.basename(rel)[:-3] + ".mpy" for rel in build_mpy.lib_sources()] + ["native_m0.mpy"])
+    assert files == sorted([os.path.basename(rel)[:-3] + ".mpy" for rel in build_mpy.lib_sources()]
+                           + ["native_m0.mpy", "augment_native_m0.mpy", "augment_vrun_m0.mpy"])
     assert "/lib/tempcomp/session.mpy /lib/tempcomp/mpu6xxx.mpy" in out, out

@@ -46,7 +46,13 @@ def test_shell_block_then_board_block(tmp_path):
         assert r.returncode == 0, (line, r.stderr)
         ran += 1
     assert ran == 4 and (tmp_path / "tempcomp.cal").exists()
-    board = [b for lang, b in blocks() if lang == "python"][0]
-    out = mpvm.run("t, dt_ms, supply = 2500, 1000, 0\n" + board + "\nprint('OUT', out[0], out[1], out[2])\n",
+    board, burst = [b for lang, b in blocks() if lang == "python"][:2]
+    out = mpvm.run("t, dt_ms, supply = 2500, 1000, 0\nfifo, n = bytearray(6 * 8), 8\n" + board
+                   + "\nprint('OUT', out[0], out[1], out[2])\n" + burst
+                   # the burst against n samples through apply() on the same model from the store
+                   + "\nb = Augmented(from_store(Store('/tempcomp.cal'), 'gyro_aug'))\n"
+                   + "for i in range(n + 1):\n    b.apply(t, raw, out, dt_ms, supply, acc)\n"
+                   + "print('BURST', list(outn[-3:]) == list(out))\n",
                    mounts=[str(tmp_path / "tempcomp.cal") + ":/tempcomp.cal"])
     assert "OUT" in out
+    assert "BURST True" in out

@@ -26,9 +26,10 @@ def results(out):
     return {ln.split()[1]: ln.split()[2] for ln in out.splitlines() if ln.startswith("IMPORT ")}
 
 
-# machine-code kernels: fixedpoint imports them where the emitter exists and falls back to pure
-# Python on these errors (a port without viper / asm_thumb refuses them at compile time)
-KERNELS = ("tempcomp.native", "tempcomp.thumb")
+# machine-code kernels: fixedpoint and augment import them where the emitter exists and fall back
+# to pure Python on these errors (a port without viper / asm_thumb refuses them at compile time)
+KERNELS = ("tempcomp.native", "tempcomp.thumb", "tempcomp.augment_native", "tempcomp.augment_thumb",
+           "tempcomp.augment_vrun")
 REFUSALS = ("SyntaxError", "ImportError", "NotImplementedError", "ValueError")
 
 

@@ -81,7 +81,7 @@ def test_4_random_walk_bias_is_reported_not_named():
         res, _ = diagnose(A.make(walk=0.3, seed=seed), A.make(walk=0.3, seed=seed + 50))
         named += bool(res["verdict"])
         kinds = {w.get("kind") for w in res["warnings"] if w["code"] == "correlated_noise"}
-        assert kinds & {"random walk", "flicker"}, res["warnings"]
+        assert kinds & {"random walk", "bias instability", "random walk + bias instability"}, res["warnings"]
     assert named <= 1                          # was 4 of 6 (issue 15, item 4)
 
 

@@ -31,27 +31,49 @@ Usage (the model from ``--export``, or loaded from the store with ``from_store``
     aug = Augmented(load_json("/model.json"))
     aug.start(0)                                   # power-on now (uptime in ms)
     aug.apply(t, raw, out, dt_ms, supply, acc)     # per sample; raw/out/acc array('i') of 3
+    aug.apply_be16_n(t, buf, out, n, dt_ms, supply, acc)   # a FIFO burst of n samples
 
 ``t`` is the temperature reading (``T = t * t_lsb + t_off`` degC), ``raw`` the raw codes
 (``raw * raw_lsb`` out units), ``supply`` the supply reading (``supply * supply_lsb`` V), ``acc``
 the accelerometer (``acc * acc_lsb`` g); ``out`` receives ref * out_scale, rounded. ``dt_ms`` is the
-time since the previous sample in ms, or -1 to take it from ``time.ticks_ms()``.
+time since the previous sample in ms, or -1 to take it from ``time.ticks_ms()``. All six are
+positional and required (pass 0 and None for a supply and an accelerometer the model does not
+read): the native kernel is a viper method, which takes no defaults. Call ``aug.apply(...)``
+itself in the loop: a bound method made beforehand (``ap = aug.apply``) copies more than four
+arguments through the heap on every call. A burst (``layout()`` says where each sample's words
+are: raw codes, optionally the accelerometer's and the temperature, big-endian int16) gives the
+same numbers as its samples through ``apply``, dt_ms apart, with t, supply and acc held unless
+the layout reads them from each sample. ``clamped()`` counts the values clamped so far.
 
-Fixed point (B = 2**30 is the small-int bound; every clamp is counted in ``clamped``):
+Where the interpreter has the viper emitter and 32-bit ints (MicroPython on Cortex-M), ``apply``
+and ``apply_be16_n`` are tempcomp.augment_native's viper methods, and a sample's body runs in
+asm_thumb (tempcomp.augment_thumb, Thumb-1: Cortex-M0+ to M7); elsewhere the pure-Python kernel
+(tempcomp.augment_pure, imported when a model first needs it), which they reproduce bit for bit
+(``use_native(False)`` picks it). Work is
+done as rarely as its inputs change: the model's integers at set-up, the base gain and offset
+term, rho, the features of the reading alone (dT and products of them) with their terms, and the
+cross matrix when the reading changes (``_step``), the filters' steps alpha when dt changes,
+the rest per sample.
+
+Fixed point (B = 2**30 is the small-int bound; every clamp is counted in ``clamped()``):
 
 * Features are ints with |f| < 2**15 in units fixed at set-up (each clamped to its bound).
   Filter states are t-readings * 2**12 (|.| <= 2**27) plus a 16-bit sub-unit carry, so a
   slow filter never stalls; the step alpha = 1 - exp(-dt/tau) is in Q28, built from a table
   of exp(-2**k ms/tau) when dt changes.
-* Terms ``mul_shift(c, f, 15)`` with |c| <= 2**28: sum of |c| <= 2**28 per axis, so dO (in
-  2**-F raw units) and e (Q28, |e| <= 1/16) stay below 2**29.
+* Terms ``mul_shift(c, f, 15)`` with |c| <= 2**28, by c's 14-bit limbs (|c >> 14| <= 2**14:
+  each product <= 2**29): sum of |c| <= 2**28 per axis, so dO (in 2**-F raw units) and e (Q28,
+  |e| <= 1/16) stay below 2**29.
 * The base step is the Compensator's, with dO's integer part taken off the raw code and its
   8-bit fraction times the gain's high limb (<= 2**21) added: the sum stays below 2**30, and
   the result keeps 2 guard bits (|y| <= 2**25).
-* e and K are scaled by rho = s(t0)/s(T) (Q28, from the Compensator's gain, on a new
-  reading); 1/(1+e) by its series to e**4 (error < 2**-15 of y) and the cross-axis solve by
-  two fixed-point iterations y = (y0 - K y) / (1 + e) (error ~|K|**3 of y); all products Q28
-  by 14-bit limbs (``_mul28``).
+* e and K are scaled by rho = s(t0)/s(T) (Q28) = (G << s) R / 2**26 on a new reading, G the
+  Compensator's gain, R = 2**54 / (G0 << s) from set-up with G0 << s in [2**26, 2**27): G << s
+  < 2**28 (the scale varies at most 2x), 4 ah bh < 2**30 (``_mul26``); 1/(1+e) by its series to
+  e**4 (error < 2**-15 of y) and the cross-axis solve by two fixed-point iterations
+  y = (y0 - K y) / (1 + e) (error ~|K|**3 of y); all products Q28 by 14-bit limbs (``_mul28``).
+* drift_hyp's (tau >> e) << 14 // (tau + (uptime >> e)): the quotient has 15 bits (the asm
+  kernel divides bit by bit: the Cortex-M0+ has no divider).
 """
 
 try:
@@ -64,7 +86,7 @@ except ImportError:
 
 import time
 
-from tempcomp.fixedpoint import EXTRAPOLATE, Compensator, div_pow2, mul_shift, shift_basis
+from tempcomp.fixedpoint import EXTRAPOLATE, Compensator, div_pow2, shift_basis
 
 FORMAT = const(1)
 _FV = const(12)  # fraction bits of filter states (t reading * 2**12)
@@ -77,7 +99,15 @@ _E_MAX = 0.0625  # |e| and |K| bounded by 1/16 at the features' bounds
 _DT_MAX = const((1 << 26) - 1)
 
 KINDS = ("dT", "lag", "play", "drift_exp", "drift_hyp", "uptime", "supply", "acc", "prod")
-_DT, _LAG, _PLAY, _DEXP, _DHYP, _UP, _SUP, _ACC, _PROD = range(9)
+_DT = const(0)  # KINDS' indices
+_LAG = const(1)
+_PLAY = const(2)
+_DEXP = const(3)
+_DHYP = const(4)
+_UP = const(5)
+_SUP = const(6)
+_ACC = const(7)
+_PROD = const(8)
 
 
 # The ms clock for dt_ms=-1, allocation-free where the port has one: time.ticks_ms on
@@ -99,23 +129,6 @@ if _ticks is None or _ticks_diff is None:
 
         def _ticks_diff(a, b):
             return a - b
-
-
-def _mul28(a, b):
-    # floor(a * b / 2**28) for |a|, |b| <= 2**28, by 14-bit limbs: every partial product
-    # <= 2**28, the middle sum <= 2**29 + 2**14
-    ah = a >> 14
-    al = a & 0x3FFF
-    bh = b >> 14
-    bl = b & 0x3FFF
-    return ah * bh + ((ah * bl + al * bh + ((al * bl) >> 14)) >> 14)
-
-
-def _bits(v):
-    n = 0
-    while (1 << n) < v:
-        n += 1
-    return n
 
 
 def _exp(x):
@@ -241,6 +254,187 @@ def unpack(v):
     return m
 
 
+# The model compiled into one flat list of ints (self._w; a 32-bit array where the native kernel
+# runs), read and written alike by the pure kernel below, tempcomp.augment_native (viper) and
+# tempcomp.augment_thumb (asm_thumb): the layout constants are repeated there and
+# host_tests/augment/test_augment_kernels.py checks that they agree. Words 0..31 are what the
+# asm_thumb kernel reads by immediate offset; then the rest of the header, three per-axis
+# blocks, and the sections whose positions the header holds.
+_CL = const(0)  # clamps counted: features, raw codes, readings
+_XS = const(1)  # the sample's reading << 12
+_TS = const(2)  # the reading (step features)
+_SUPS = const(3)  # the supply reading
+_AS = const(4)  # the acceleration (3 words)
+_UPT = const(7)  # uptime, ms (saturates)
+_MID = const(8)  # the raw range's middle, its half-span 2**K, K, S - 2, the rounding 2**(S-3)
+_LIM = const(9)
+_KB = const(10)
+_S2 = const(11)
+_RND = const(12)
+_NTAU = const(13)  # lowpass states: count, first record (_TREC words each)
+_PTAU = const(14)
+_NPLAY = const(15)  # play states: count, first record (half width, input state or -1, p)
+_PPLAY = const(16)
+_NSF = const(17)  # sample features: count, first record (_FREC words each)
+_PSF = const(18)
+_FL = const(19)  # flags, _F*
+_KONE = const(20)  # 2**28, 32767 for the asm kernel
+_KFMAX = const(21)
+_O = const(22)  # the sample's outputs (3 words)
+_SCL = const(25)  # clamps of the step features at reading _TC, counted again every sample
+_FILT = const(26)  # 1: the filters step with this sample (not its first)
+_SCR = const(27)  # scratch for the asm kernel (5 words)
+_SRC = const(32)  # the asm kernel's run (words 32..43 from a second base): the source's address,
+_OUTP = const(33)  # the outputs' address, samples left, the source's kind (0: int32 words, 1: a
+_NS = const(34)  # burst's big-endian int16 bytes at a stride)
+_MODE = const(35)
+_STR = const(36)  # burst layout: stride, byte offsets of the raw and acc words (temperature: _TOFF)
+_ROFF = const(37)
+_AOFF = const(38)
+_DTR = const(39)  # the ms each sample adds to the uptime, -1: no uptime to count
+_HASF = const(40)  # 1: the model has filters (they step from a run's second sample on)
+_NHYP = const(41)  # drift_hyp values: count, first record (value index, tau >> e, e)
+_PHYP = const(42)
+_UPMAX = const(43)  # the uptime saturates below it: 2**30 - _DT_MAX
+_TC = const(44)  # the reading the step values are for (t_lo - 1: none yet)
+_TLO = const(45)
+_THI = const(46)
+_DTC = const(47)  # the dt (ms) the filters' alphas are for (-1: none yet)
+_LAST = const(48)  # ticks_ms at the last sample taken with dt_ms = -1
+_NB = const(49)  # apply_be16_n: samples in the burst
+_TOFF = const(50)
+_CRAW = const(51)  # buffer addresses of the arrays the native kernel has checked: a sample's,
+_COUT = const(52)
+_CACC = const(53)
+_NTF = const(54)  # step features (dT and products of them): count, first record
+_PTF = const(55)
+_DTI = const(56)  # the dT feature's value (the cross terms' temperature part), -1: none
+_PUPD = const(57)  # native: the base update's integers, _UREC words per axis
+_NEED = const(58)  # bytes of a burst sample the layout reads
+_CBOUT = const(59)  # a burst's
+_CBACC = const(60)
+_SMALL = const(61)  # 1: the array's address is a small int (the kernel passes it as one)
+_AXB = const(62)  # the per-axis blocks, _AXS words each (then words 128..):
+_AXS = const(22)
+_GH = const(0)  # the base gain (high, low limb) and offset term
+_GL = const(1)
+_B = const(2)
+_RHO = const(3)  # s(t0) / s(T), Q28
+_DS = const(4)  # the step features' share of the offset terms (dO) and of e
+_ES = const(5)
+_FO = const(6)  # fraction bits of dO
+_AF = const(7)  # the axis' terms: _AGAIN sensitivity, _AOFFS offset, _ACROSS cross-axis
+_AGAIN = const(1)
+_AOFFS = const(2)
+_ACROSS = const(4)
+_ASTEPT = const(8)  # the axis has terms of step features (their share computed per reading)
+_OT = const(8)  # where the axis' term lists start: count, then (value index, coefficient)
+_GT = const(9)
+_CR = const(10)  # cross terms: count, then (axis k, k0, k1), one per k
+_Y0 = const(11)
+_INV = const(12)  # 1 / (1 + rho e), Q28
+_Y = const(13)
+_KM = const(14)  # the cross matrix' row (3 words), rho-scaled, per step
+_RAW = const(17)
+_SOT = const(18)  # the step features' term lists
+_SGT = const(19)
+_RS = const(20)  # rho: the gain's shift and the reciprocal of the gain at t0
+_RR = const(21)
+_CBUF = const(128)  # a burst's checked buffer, its length, the checked out array's length
+_CBUFN = const(129)
+_CBOUTN = const(130)
+_TSPAN = const(131)  # native: t_hi - t_lo, 2 * 2**K, the base's rounding and shift to the output
+_LIM2 = const(132)
+_RNDO = const(133)
+_S2O = const(134)
+_HDR = const(135)
+_TREC = const(30)  # lowpass record: drift flag, alpha, state, carry, then the alpha table
+_FREC = const(6)  # feature record: operation, value index, s1, s2, bound, shift
+_OSUB = const(0)  # the record's operations: w[s1] - w[s2]
+_OSUBC = const(1)  # w[s1] - s2
+_OSHR = const(2)  # w[s1] >> s2
+_OMUL = const(3)  # w[s1] * w[s2]
+_UREC = const(30)  # base update record (augment_native)
+
+_FUP = const(1)  # uptime counts
+_FFILT = const(2)  # lowpass or play states
+_FSTART = const(4)  # the filters have had their first reading
+_FTICK = const(8)  # _LAST holds a ticks_ms value
+_FRHO = const(16)  # sensitivity or cross terms: rho per step
+_FCROSS = const(32)
+_FGEN = const(64)  # features or terms: the general per-sample path
+_FACC = const(128)  # a feature reads acc
+_FDT = const(256)  # dt is used (uptime or filters)
+_FSUP = const(512)  # a feature reads the supply
+_FBURST = const(1024)  # apply_be16_n's call: _NB samples from a burst
+
+
+_native = None  # None: the native kernel where the interpreter has one; True/False: forced
+_kmod = None
+_ktried = False
+
+
+def _kernel():
+    # imported on first use (boot RAM holds no native code until a model is built); only on
+    # 32-bit machines, where its 32-bit words are the machine's ints
+    global _kmod, _ktried
+    if not _ktried:
+        _ktried = True
+        try:
+            import gc
+            import sys
+
+            gc.collect()  # the kernels' machine code wants large blocks
+            if sys.maxsize >> 31 == 0:
+                try:
+                    from tempcomp import augment_native
+                except ValueError:
+                    # an armv7m .mpy on a Cortex-M0+ (RP2040): the armv6m build beside it (make dist)
+                    from tempcomp import augment_native_m0 as augment_native  # pyright: ignore[reportAttributeAccessIssue]
+
+                _kmod = augment_native
+                Augmented.apply = augment_native.apply  # pyright: ignore[reportAttributeAccessIssue]
+                Augmented.apply_be16_n = augment_native.apply_be16_n  # pyright: ignore[reportAttributeAccessIssue]
+        except (ImportError, SyntaxError, ValueError, NotImplementedError, AttributeError, MemoryError):
+            # CPython, a port without the viper emitter, a .mpy for another architecture, or a
+            # heap too small to compile the kernels from .py (the .mpy load in a quarter of it)
+            _kmod = None
+    return _kmod
+
+
+_pmod = None
+
+
+def _pure():
+    # the pure-Python kernel, imported when a model first runs it; the class's apply where there
+    # is no native one, and _papply / _papply_n for models forced to it beside the native ones
+    global _pmod
+    if _pmod is None:
+        from tempcomp import augment_pure
+
+        _pmod = augment_pure
+        Augmented._papply = augment_pure.apply  # pyright: ignore[reportAttributeAccessIssue]
+        Augmented._papply_n = augment_pure.apply_be16_n  # pyright: ignore[reportAttributeAccessIssue]
+        if _kernel() is None:
+            Augmented.apply = augment_pure.apply  # pyright: ignore[reportAttributeAccessIssue]
+            Augmented.apply_be16_n = augment_pure.apply_be16_n  # pyright: ignore[reportAttributeAccessIssue]
+    return _pmod
+
+
+def use_native(on=None):
+    """Choose the per-sample kernel of Augmented models built from now on.
+
+    None (default): native (viper, with asm_thumb where the port has it) where the interpreter
+    has the viper emitter, else pure Python; True: native or ValueError; False: pure Python.
+    Returns True when native will be used. Both give bit-identical results.
+    """
+    global _native
+    if on and _kernel() is None:
+        raise ValueError("use_native(True): this interpreter has no @micropython.viper emitter")
+    _native = None if on is None else bool(on)
+    return _native is not False and _kernel() is not None
+
+
 class Augmented:
     """The augmented model of one 3-axis sensor, set up once from a model dict."""
 
@@ -252,15 +446,12 @@ class Augmented:
         raw_lsb = float(m.get("raw_lsb", 1.0))
         if not raw_lsb > 0:
             raise ValueError("raw_lsb must be positive, got %r" % (raw_lsb,))
-        self.t_lsb = t_lsb
-        self.t_off = t_off
         t0 = float(m.get("t0", 25.0))
         tc = m["t_cal"]
         c_lo = int((float(tc[0]) - t_off) / t_lsb) - 1
         c_hi = int((float(tc[1]) - t_off) / t_lsb) + 2
         # dT counts from the reading nearest t0 (docs: a shift below half a reading step)
-        self._t0 = int(round((t0 - t_off) / t_lsb))
-        self.t0 = self._t0 * t_lsb + t_off
+        t0r = int(round((t0 - t_off) / t_lsb))
         t_ref = (c_lo + c_hi) // 2
         offs = []
         scs = []
@@ -276,27 +467,22 @@ class Augmented:
         self.comp = Compensator(offs, scs, (c_lo, c_hi), out_scale=float(m.get("out_scale", 1.0)),
                                 raw_range=(int(rr[0]), int(rr[1])), policy=EXTRAPOLATE, t_ref=t_ref)
         c = self.comp
-        self.out_scale = c.out_scale
         t_lo, t_hi = c.t_in
-        self.clamped = 0
         feats = [] if base_only else m.get("features", [])
         nf = len(feats)
         # feature program: kind, arg1, arg2, clamp bound (int), shift (>0 right)
-        self._fk = [0] * nf
-        self._fa = [0] * nf
-        self._fb = [0] * nf
-        self._fbound = [0] * nf
-        self._fsh = [0] * nf
+        fk = [0] * nf
+        fa = [0] * nf
+        fb = [0] * nf
+        fbound = [0] * nf
+        fsh = [0] * nf
         self.unit = [0.0] * nf  # physical value of one feature count
-        self._f = [0] * nf
-        taus = []  # lowpass time constants (ms), shared by lag, play-on-lag and drift_exp
+        taus = []  # lowpass time constants (s), shared by lag, play-on-lag and drift_exp
         plays = []  # (half width in state units, lowpass index or -1)
-        self._up_sh = 0
-        self._up_on = False
-        self._hyp = []  # (tau >> e, e)
-        self._s_lsb = float(m.get("supply_lsb", 0.001))
-        self._s0 = int(round(float(m.get("supply0", 0.0)) / self._s_lsb))
+        s_lsb = float(m.get("supply_lsb", 0.001))
+        s0 = int(round(float(m.get("supply0", 0.0)) / s_lsb))
         a_lsb = float(m.get("acc_lsb", 0.001))
+        fl = 0
         for j in range(nf):
             f = feats[j]
             kind = f["kind"]
@@ -306,411 +492,407 @@ class Augmented:
             if k == _PROD and not (0 <= int(f["a"]) < j and 0 <= int(f["b"]) < j):
                 raise ValueError("feature %d: prod of features %r and %r; they must come before it"
                                  % (j, f["a"], f["b"]))
-            self._fk[j] = k
+            fk[j] = k
             bound = float(f.get("bound", 0.0))
+            nat = 0  # the clamp bound in natural units of `u` each
+            u = 1.0
             if k == _DT:
-                nat = max(abs(t_lo - self._t0), abs(t_hi - self._t0))
-                self._set_feat(j, nat, t_lsb)
+                fa[j] = t0r
+                nat, u = max(abs(t_lo - t0r), abs(t_hi - t0r)), t_lsb
             elif k == _LAG:
-                self._fa[j] = _lp(taus, float(f["tau"]))
+                fa[j] = _lp(taus, float(f["tau"]))
                 b = bound if bound > 0 else (t_hi - t_lo) * t_lsb
-                self._set_feat(j, int(b / t_lsb * (1 << _FV)) + 1, t_lsb / (1 << _FV))
+                nat, u = int(b / t_lsb * (1 << _FV)) + 1, t_lsb / (1 << _FV)
             elif k == _PLAY:
-                w = float(f["width"])
-                if not w > 0:
-                    raise ValueError("feature %d: play width must be positive, got %r" % (j, w))
+                wd = float(f["width"])
+                if not wd > 0:
+                    raise ValueError("feature %d: play width must be positive, got %r" % (j, wd))
                 lag = float(f.get("lag", 0.0))
                 li = _lp(taus, lag) if lag > 0 else -1
-                h = int(round(w / 2 / t_lsb * (1 << _FV)))
-                self._fa[j] = len(plays)
+                h = int(round(wd / 2 / t_lsb * (1 << _FV)))
+                fa[j] = len(plays)
                 plays.append((h, li))
-                self._set_feat(j, h, t_lsb / (1 << _FV))
+                nat, u = h, t_lsb / (1 << _FV)
             elif k == _DEXP:
-                self._fa[j] = _lp(taus, float(f["tau"]), True)
-                self._set_feat(j, _ONE, 1.0 / _ONE)
+                fa[j] = _lp(taus, float(f["tau"]), True)
+                nat, u = _ONE, 1.0 / _ONE
             elif k == _DHYP:
                 tau_ms = float(f["tau"]) * 1000.0
+                if not tau_ms >= 1.0:
+                    raise ValueError("feature %d: drift_hyp tau must be at least 1 ms, got %r s" % (j, f["tau"]))
                 e = 0
                 while tau_ms / (1 << e) >= (1 << 15):
                     e += 1
-                self._fa[j] = len(self._hyp)
-                self._hyp.append((int(round(tau_ms / (1 << e))), e))
-                self._up_on = True
-                self._set_feat(j, 1 << 14, 1.0 / (1 << 14))
+                fa[j] = int(round(tau_ms / (1 << e)))  # (tau >> e) << 14 < 2**29
+                fb[j] = e
+                fl |= _FUP
+                nat, u = 1 << 14, 1.0 / (1 << 14)
             elif k == _UP:
                 b_ms = (bound if bound > 0 else 86400.0) * 1000.0
                 e = 0
                 while b_ms / (1 << e) > _FMAX:
                     e += 1
-                self._up_sh = e
-                self._up_on = True
-                self._fsh[j] = 0
-                self._fbound[j] = _FMAX
+                fa[j] = e
+                fl |= _FUP
+                fbound[j] = _FMAX
                 self.unit[j] = (1 << e) / 1000.0
+                continue
             elif k == _SUP:
+                fa[j] = s0
+                fl |= _FSUP
                 b = bound if bound > 0 else 1.0
-                self._set_feat(j, int(b / self._s_lsb) + 1, self._s_lsb)
+                nat, u = int(b / s_lsb) + 1, s_lsb
             elif k == _ACC:
                 ax = int(f["axis"])
                 if not 0 <= ax < 3:
                     raise ValueError("feature %d: acc axis %r must be 0, 1 or 2" % (j, ax))
-                self._fa[j] = ax
+                fa[j] = ax
+                fl |= _FACC
                 b = bound if bound > 0 else 4.0
-                self._set_feat(j, int(b / a_lsb) + 1, a_lsb)
+                nat, u = int(b / a_lsb) + 1, a_lsb
             else:
                 a, b = int(f["a"]), int(f["b"])
-                self._fa[j] = a
-                self._fb[j] = b
+                fa[j] = a
+                fb[j] = b
                 u = self.unit[a] * self.unit[b]
                 nat = _FMAX * _FMAX
                 if bound > 0:
                     nat = min(nat, int(bound / u) + 1)
-                self._set_feat(j, nat, u)
-        self._ntau = len(taus)
-        self._tau_ms = [t[0] * 1000.0 for t in taus]
-        # alpha tables: 1 - exp(-2**k ms / tau) in Q28
-        self._atab = []
-        for tau_ms in self._tau_ms:
-            self._atab.append([min(_ONE, _fix(1.0 - _exp(-float(1 << kk) / tau_ms), _Q)) for kk in range(_TAB)])
-        self._alpha = [0] * len(taus)
-        self._v = [0] * len(taus)  # lowpass states (t * 2**12), drift ones in Q28
-        self._w = [0] * len(taus)  # sub-unit carries
-        self._drift = [t[1] for t in taus]  # drift states decay to 0 instead of following T
-        self._plays = plays
-        self._p = [0] * len(plays)
-        self._nplay = len(plays)
-        self._dt = -1
-        self._last = 0
-        self._started = False
-        self._up = 0  # uptime, ms (saturates)
-        # coefficients
-        self._oc = [[], [], []]
-        self._oi = [[], [], []]
-        self._gc = [[], [], []]
-        self._gi = [[], [], []]
-        self._kc = [[], [], []]
-        self._kk = [[], [], []]
-        self._k1 = [[], [], []]
-        self._fo = [0, 0, 0]
+            # the shift that brings the bound to 2**15 counts; a short range is spread over
+            # 2**14..2**15 counts, for small per-count coefficients
+            nat = int(nat)
+            sh = 0
+            while (nat >> sh) > _FMAX:
+                sh += 1
+            while sh <= 0 and sh > -15 and (nat << (1 - sh)) <= _FMAX:
+                sh -= 1
+            fbound[j] = nat
+            fsh[j] = sh
+            self.unit[j] = u * (1 << sh) if sh >= 0 else u / (1 << -sh)
+        # largest |feature count| after the clamp and the shift
+        fmax = [fbound[j] << -fsh[j] if fsh[j] <= 0 else min(_FMAX, (fbound[j] + (1 << fsh[j]) - 1) >> fsh[j])
+                for j in range(nf)]
         dti = -1
         for j in range(nf):
-            if self._fk[j] == _DT:
+            if fk[j] == _DT:
                 dti = j
-        self._dti = dti
+        # step features: those of the reading alone (dT, products of them), once per new reading
+        step = [False] * nf
+        for j in range(nf):
+            step[j] = fk[j] == _DT or (fk[j] == _PROD and step[fa[j]] and step[fb[j]])
+        terms = [[[], [], [], [], 0] for _ in range(3)]  # sample/step offset, sample/step gain, fo
+        cross = [[], [], []]
         if not base_only:
-            self._set_terms(m, nf)
-        self._y = [0, 0, 0]
-        self._y0 = [0, 0, 0]
-        self._inv = [_ONE, _ONE, _ONE]
-        self._kmat = [0] * 9
-        self._cross = any(self._kk[i] for i in range(3))
-        # rho_i(T) = s_i(t0) / s_i(T): the terms are fractions of the sensitivity at t0
-        self._rho_on = self._cross or any(self._gc[i] for i in range(3))
-        self._rho = [_ONE, _ONE, _ONE]
-        self._rt = None
-        c.update(self._t0 if t_lo <= self._t0 <= t_hi else (t_lo + t_hi) // 2)
-        self._g0 = [((c._gh[i] << c._k) + c._gl[i]) >> 2 for i in range(3)]
+            self._set_terms(m, nf, dti, step, fmax, terms, cross)
+        # the base: the Compensator's gain and offset term at each reading (pure: its update();
+        # native: the same integers from _UREC records)
+        c.update(t0r if t_lo <= t0r <= t_hi else (t_lo + t_hi) // 2)
+        w = [0] * _HDR
+        w[_TC] = t_lo - 1
+        w[_TLO] = t_lo
+        w[_THI] = t_hi
+        w[_DTC] = -1
+        w[_MID] = c._mid
+        w[_LIM] = 1 << c._k
+        w[_KB] = c._k
+        w[_S2] = c._s - 2
+        w[_RND] = 1 << (c._s - 3)
+        w[_TSPAN] = t_hi - t_lo
+        w[_LIM2] = 2 << c._k
+        w[_RNDO] = (1 << (c._s - 3)) + (1 << (c._s - 1))  # ((y + rnd) >> (S - 2) + 2) >> 2
+        w[_S2O] = c._s
+        w[_KONE] = _ONE
+        w[_KFMAX] = _FMAX
+        w[_DTI] = -1
+        w[_STR] = 6
+        w[_AOFF] = -1
+        w[_TOFF] = -1
+        w[_NEED] = 6
+        w[_UPMAX] = (1 << 30) - _DT_MAX
+        for i in range(3):
+            ab = _AXB + _AXS * i
+            w[ab + _GH] = c._gh[i]
+            w[ab + _GL] = c._gl[i]
+            w[ab + _B] = c._b[i]
+            w[ab + _RHO] = _ONE
+            w[ab + _INV] = _ONE  # an axis without sensitivity terms keeps it
+            # rho = G / G0 = (G << s) * R / 2**26 with G0 << s in [2**26, 2**27) and
+            # R = floor(2**54 / (G0 << s)) in (2**27, 2**28]: G << s < 2**28 (G < 2 G0)
+            g0 = ((c._gh[i] << c._k) + c._gl[i]) >> 2
+            sh = 0
+            while (g0 << sh) < (1 << 26):
+                sh += 1
+            while (g0 << sh) >= (1 << 27):
+                sh -= 1
+            w[ab + _RS] = sh
+            w[ab + _RR] = div_pow2(1 << 26, 28, g0 << sh) if sh >= 0 else 0
+            if sh < 0:
+                raise ValueError("axis %d: gain %r beyond the fixed-point range" % (i, g0))
+        w[_PUPD] = len(w)
+        for i in range(3):
+            w.extend(_urec(c, i))
+        # lowpass records with their alpha tables: 1 - exp(-2**k ms / tau) in Q28
+        w[_NTAU] = len(taus)
+        w[_PTAU] = len(w)
+        for tau, drift in taus:
+            w.extend([1 if drift else 0, 0, 0, 0])
+            w.extend([min(_ONE, _fix(1.0 - _exp(-float(1 << kk) / (tau * 1000.0)), _Q)) for kk in range(_TAB)])
+        w[_NPLAY] = len(plays)
+        w[_PPLAY] = len(w)
+        for h, li in plays:
+            w.extend([h, 4 * (w[_PTAU] + _TREC * li + 2) if li >= 0 else -1, 0])
+        fv = len(w)  # feature values
+        w.extend([0] * nf)
+        if dti >= 0:
+            w[_DTI] = fv + dti
+        hyp = []
+        for stp in (False, True):
+            recs = ([], [], [], [])  # by operation: the asm kernel runs each group without a test;
+            for j in range(nf):  # products come last, in order (they read earlier values)
+                if step[j] != stp:
+                    continue
+                k = fk[j]
+                a, b = fa[j], fb[j]
+                if k == _DT:
+                    op, a, b = _OSUBC, _TS, a
+                elif k == _LAG:
+                    op, a, b = _OSUB, _XS, w[_PTAU] + _TREC * a + 2
+                elif k == _PLAY:
+                    pl = w[_PPLAY] + 3 * a
+                    op, a, b = _OSUB, pl + 2, w[pl + 1] >> 2 if w[pl + 1] >= 0 else _XS
+                elif k == _DEXP:
+                    op, a, b = _OSUBC, w[_PTAU] + _TREC * a + 2, 0
+                elif k == _DHYP:
+                    # (tau << 14) // (tau + (uptime >> e)), computed before the records run
+                    hyp.append((4 * (fv + j), a, b))
+                    op, a, b = _OSUBC, fv + j, 0
+                elif k == _UP:
+                    op, a, b = _OSHR, _UPT, a
+                elif k == _SUP:
+                    op, a, b = _OSUBC, _SUPS, a
+                elif k == _ACC:
+                    op, a, b = _OSUBC, _AS + a, 0
+                else:
+                    op, a, b = _OMUL, fv + a, fv + b
+                # the words' indices as byte offsets (the asm kernel's register-offset loads)
+                recs[op].append([op, 4 * (fv + j), 4 * a, 4 * b if op in (_OSUB, _OMUL) else b, fbound[j], fsh[j]])
+            w[_NTF if stp else _NSF] = sum(len(g) for g in recs)
+            w[_PTF if stp else _PSF] = len(w)
+            w.extend([len(g) for g in recs])
+            for g in recs:
+                for r in g:
+                    w.extend(r)
+        w[_NHYP] = len(hyp)
+        w[_PHYP] = len(w)
+        for r in hyp:
+            w.extend(r)
+        for i in range(3):
+            ab = _AXB + _AXS * i
+            so, to, sg, tg, fo = terms[i]
+            w[ab + _FO] = fo
+            w[ab + _AF] = ((_AGAIN if sg or tg else 0) | (_AOFFS if so or to else 0) | (_ACROSS if cross[i] else 0)
+                           | (_ASTEPT if to or tg else 0))
+            for slot, lst in ((_OT, so), (_SOT, to), (_GT, sg), (_SGT, tg)):
+                w[ab + slot] = len(w)
+                w.append(len(lst))
+                for fi, cc in lst:
+                    w.extend([4 * (fv + fi), cc >> 14, cc & 0x3FFF])  # the value's byte offset, c's limbs
+            w[ab + _CR] = len(w)
+            w.append(len(cross[i]))
+            for r in cross[i]:
+                w.extend(r)
+            if sg or tg or cross[i]:
+                fl |= _FRHO
+            if cross[i]:
+                fl |= _FCROSS
+        if taus or plays:
+            fl |= _FFILT
+            w[_HASF] = 1
+        if fl & (_FUP | _FFILT):
+            fl |= _FDT
+        if nf or fl & _FRHO:
+            fl |= _FGEN
+        w[_FL] = fl
+        # the lowpass time constants (ms, for start()), then (native) the arrays whose buffer
+        # addresses are in _C*. Five instance attributes: comp, unit, _aux, _w, _wp (more, and
+        # MicroPython's member table fills up, and every apply() lookup, a miss there, probes all of it)
+        self._aux = [[t[0] * 1000.0 for t in taus]] + [None] * (_CBUF - _CRAW + 1)
+        self._w = w
+        self._wp = w
+        if _kernel() is not None and _native is not False:
+            from array import array
+
+            self._w = array("i", w)
+            # the kernel finds the words through their address (a small int on Cortex-M: cheaper
+            # to convert than the array); the array stays referenced by _w
+            self._wp = _kmod.address(self._w)  # pyright: ignore[reportOptionalMemberAccess]
+            self._w[_SMALL] = 1 if type(self._wp) is int else 0
+        else:
+            _pure()
+            if _kernel() is not None:
+                # the class holds the native kernels: this model's own, bound to it
+                self.apply = self._papply  # pyright: ignore[reportAttributeAccessIssue]
+                self.apply_be16_n = self._papply_n  # pyright: ignore[reportAttributeAccessIssue]
         self.start(0)
 
-    def _set_feat(self, j, nat, unit):
-        # clamp bound `nat` (natural units of `unit` each) and the shift that brings it to 2**15
-        nat = int(nat)
-        sh = 0
-        while (nat >> sh) > _FMAX:
-            sh += 1
-        while sh <= 0 and sh > -15 and (nat << (1 - sh)) <= _FMAX:
-            sh -= 1  # a short range is spread over 2**14..2**15 counts: small per-count coefficients
-        self._fbound[j] = nat
-        self._fsh[j] = sh
-        self.unit[j] = unit * (1 << sh) if sh >= 0 else unit / (1 << -sh)
+    def clamped(self):
+        """Values clamped so far: features at their bounds, raw codes and readings outside the
+        proven ranges (never wrapped). A method, not a property: a property makes MicroPython
+        check every attribute the class serves for accessors, apply() included."""
+        return self._w[_CL]
 
-    def _fmax(self, j):
-        # largest |feature count| after the clamp and the shift
-        sh = self._fsh[j]
-        if sh <= 0:
-            return self._fbound[j] << -sh
-        return min(_FMAX, (self._fbound[j] + (1 << sh) - 1) >> sh)
-
-    def _set_terms(self, m, nf):
+    def _set_terms(self, m, nf, dti, step, fmax, terms, cross):
         ot = m.get("offset_terms") or [[], [], []]
         gt = m.get("gain_terms") or [[], [], []]
         cr = m.get("cross") or [[], [], []]
         raw_lsb = float(m.get("raw_lsb", 1.0))
+        unit = self.unit
         for i in range(3):
             tot = 0.0
             for fi, cc in ot[i]:
                 if not 0 <= int(fi) < nf:
                     raise ValueError("offset term of axis %d names feature %r of %d" % (i, fi, nf))
-                tot += abs(float(cc) / raw_lsb) * self.unit[int(fi)] * self._fmax(int(fi))
+                tot += abs(float(cc) / raw_lsb) * unit[int(fi)] * fmax[int(fi)]
             if tot > (1 << 15):
                 raise ValueError("axis %d: offset terms reach %r raw codes at the features' bounds; "
                                  "more than the raw range" % (i, tot))
             # and each coefficient alone within mul_shift's 2**28 (counts up to 2**15)
-            tot = max(tot, max([abs(float(cc) / raw_lsb) * self.unit[int(fi)] for fi, cc in ot[i]] + [0.0]) * (1 << 15))
+            tot = max(tot, max([abs(float(cc) / raw_lsb) * unit[int(fi)] for fi, cc in ot[i]] + [0.0]) * (1 << 15))
             fo = 0
             while fo < 24 and tot * (1 << (fo + 1)) <= (1 << 28):
                 fo += 1
             if fo < 8:
                 raise ValueError("axis %d: offset terms too large for 8 fraction bits" % i)
-            self._fo[i] = fo
+            t = terms[i]
+            t[4] = fo
             for fi, cc in ot[i]:
-                self._oi[i].append(int(fi))
-                self._oc[i].append(_fix(float(cc) / raw_lsb * self.unit[int(fi)], fo + 15))
+                fi = int(fi)
+                t[1 if step[fi] else 0].append((fi, _fix(float(cc) / raw_lsb * unit[fi], fo + 15)))
             tot = 0.0
             for fi, g in gt[i]:
                 if not 0 <= int(fi) < nf:
                     raise ValueError("gain term of axis %d names feature %r of %d" % (i, fi, nf))
-                tot += abs(float(g)) * self.unit[int(fi)] * self._fmax(int(fi))
-                self._gi[i].append(int(fi))
-                self._gc[i].append(_fix(float(g) * self.unit[int(fi)], _Q + 15))
+                fi = int(fi)
+                tot += abs(float(g)) * unit[fi] * fmax[fi]
+                t[3 if step[fi] else 2].append((fi, _fix(float(g) * unit[fi], _Q + 15)))
             if tot > _E_MAX:
                 raise ValueError("axis %d: sensitivity terms reach %r at the features' bounds; at most "
                                  "%r are supported" % (i, tot, _E_MAX))
-            dt_u = self.unit[self._dti] * self._fmax(self._dti) if self._dti >= 0 else 0.0
+            dt_u = unit[dti] * fmax[dti] if dti >= 0 else 0.0
             for k, k0, k1 in cr[i]:
                 k = int(k)
                 if not 0 <= k < 3 or k == i:
                     raise ValueError("cross term of axis %d names axis %r" % (i, k))
-                if float(k1) != 0 and self._dti < 0:
+                if float(k1) != 0 and dti < 0:
                     raise ValueError("cross term with a temperature part needs a dT feature")
                 if abs(float(k0)) + abs(float(k1)) * dt_u > _E_MAX:
                     raise ValueError("axis %d: cross-axis term from axis %d above %r" % (i, k, _E_MAX))
-                self._kk[i].append(k)
-                self._kc[i].append(_fix(float(k0), _Q))
-                self._k1[i].append(_fix(float(k1) * (self.unit[self._dti] if self._dti >= 0 else 0.0), _Q + 15))
+                # one term per pair of axes: a later one replaces an earlier
+                cross[i] = [r for r in cross[i] if r[0] != k]
+                cross[i].append((k, _fix(float(k0), _Q), _fix(float(k1) * (unit[dti] if dti >= 0 else 0.0), _Q + 15)))
 
     def start(self, uptime_ms=0):
-        """Power-on state: filters restart at the next reading, uptime counts from uptime_ms."""
-        self._started = False
-        self._ticked = False
-        self._up = int(uptime_ms)
-        for i in range(self._ntau):
-            self._w[i] = 0
-            if self._drift[i]:
-                self._v[i] = _fix(_exp(-float(uptime_ms) / self._tau_ms[i]), _Q)
-
-    def _alphas(self, dt):
-        # alpha(dt) = 1 - prod_k (1 - alpha(2**k)) over dt's set bits; only when dt changes
-        self._dt = dt
-        tabs = self._atab
-        i = 0
-        while i < self._ntau:
-            tab = tabs[i]
-            a = 0
-            k = 0
-            d = dt
-            while d:
-                if d & 1:
-                    b = tab[k]
-                    a = a + b - _mul28(a, b)
-                d >>= 1
-                k += 1
-            self._alpha[i] = a
-            i += 1
-
-    def _filters(self, t, dt):
-        v = self._v
+        """Power-on state: filters restart at the next reading, uptime counts from uptime_ms
+        (saturating at 2**30 - 2**26 ms, 11.6 days, as it does while counting)."""
+        up = int(uptime_ms)
+        if up < 0:
+            raise ValueError("start: uptime_ms must be >= 0, got %r" % (uptime_ms,))
+        up = min(up, (1 << 30) - _DT_MAX - 1)
         w = self._w
-        x = t << _FV
-        if not self._started:
-            self._started = True
-            i = 0
-            while i < self._ntau:
-                if not self._drift[i]:
-                    v[i] = x
-                i += 1
-            i = 0
-            while i < self._nplay:
-                h, li = self._plays[i]
-                self._p[i] = x if li < 0 else v[li]
-                i += 1
-            return
-        if dt != self._dt:
-            self._alphas(dt)
-        al = self._alpha
-        i = 0
-        while i < self._ntau:
-            # v += alpha * (target - v), exactly to 2**-16 of a state unit (carry in w):
-            # |target - v| <= 2**28, alpha <= 2**28
-            a = al[i]
-            d = (0 if self._drift[i] else x) - v[i]
-            ah = a >> 14
-            al_ = a & 0x3FFF
-            dh = d >> 14
-            dl = d & 0x3FFF
-            mid = ah * dl + al_ * dh
-            lo = ((mid & 0x3FFF) << 14) + al_ * dl
-            q = ah * dh + (mid >> 14) + (lo >> 28)
-            s = w[i] + ((lo & 0xFFFFFFF) >> 12)
-            v[i] += q + (s >> _SUB)
-            w[i] = s & 0xFFFF
-            i += 1
-        i = 0
-        while i < self._nplay:
-            h, li = self._plays[i]
-            xi = x if li < 0 else v[li]
-            p = self._p[i]
-            if xi - h > p:
-                self._p[i] = xi - h
-            elif xi + h < p:
-                self._p[i] = xi + h
-            i += 1
+        w[_FL] &= ~(_FSTART | _FTICK)
+        w[_UPT] = up
+        p = w[_PTAU]
+        for i in range(w[_NTAU]):
+            w[p + 3] = 0
+            if w[p]:
+                w[p + 2] = _fix(_exp(-float(up) / self._aux[0][i]), _Q)  # pyright: ignore[reportOptionalSubscript]
+            p += _TREC
 
-    def _features(self, t, supply, acc):
-        f = self._f
-        fk = self._fk
-        x = t << _FV
-        j = 0
-        n = len(f)
-        while j < n:
-            k = fk[j]
-            if k == _DT:
-                nat = t - self._t0
-            elif k == _LAG:
-                nat = x - self._v[self._fa[j]]
-            elif k == _PLAY:
-                h, li = self._plays[self._fa[j]]
-                nat = self._p[self._fa[j]] - (x if li < 0 else self._v[li])
-            elif k == _DEXP:
-                nat = self._v[self._fa[j]]
-            elif k == _DHYP:
-                tau, e = self._hyp[self._fa[j]]
-                nat = (tau << 14) // (tau + (self._up >> e))
-            elif k == _UP:
-                nat = self._up >> self._up_sh
-            elif k == _SUP:
-                nat = supply - self._s0
-            elif k == _ACC:
-                nat = acc[self._fa[j]]
-            else:
-                nat = f[self._fa[j]] * f[self._fb[j]]
-            b = self._fbound[j]
-            if nat > b:
-                nat = b
-                self.clamped += 1
-            elif nat < -b:
-                nat = -b
-                self.clamped += 1
-            sh = self._fsh[j]
-            if sh < 0:
-                nat <<= -sh
-            elif sh:
-                nat = (nat + (1 << (sh - 1))) >> sh
-                if nat > _FMAX:
-                    nat = _FMAX
-                elif nat < -_FMAX:
-                    nat = -_FMAX
-            f[j] = nat
-            j += 1
+    def layout(self, stride=6, raw=0, acc=-1, temp=-1):
+        """The burst apply_be16_n reads: one sample every ``stride`` bytes, its three raw codes as
+        big-endian int16 words at byte ``raw``, the accelerometer's at ``acc`` and the temperature
+        reading at ``temp`` (-1: from the call's arguments). An MPU-6xxx FIFO packet of accel,
+        temperature and gyro: ``layout(14, raw=8, acc=0, temp=6)``."""
+        need = 0
+        for name, off in (("raw", raw), ("acc", acc), ("temp", temp)):
+            if off != int(off) or off < (0 if name == "raw" else -1):
+                raise ValueError("layout: %s offset %r must be an int >= %d" % (name, off, 0 if name == "raw" else -1))
+            if off >= 0:
+                need = max(need, off + (2 if name == "temp" else 6))
+        if stride != int(stride) or not need <= stride < 32768:
+            raise ValueError("layout: stride %r must cover the words (%d bytes) and be < 32768" % (stride, need))
+        w = self._w
+        w[_STR] = int(stride)
+        w[_ROFF] = int(raw)
+        w[_AOFF] = int(acc)
+        w[_TOFF] = int(temp)
+        w[_NEED] = need
 
-    def apply(self, t, raw, out, dt_ms=-1, supply=0, acc=None):
-        """Compensate raw[0..2] at temperature reading t into out[0..2]; zero allocation."""
-        if dt_ms < 0:
-            now = _ticks()
-            dt_ms = _ticks_diff(now, self._last) if self._ticked else 0
-            self._last = now
-            self._ticked = True
-        if dt_ms > _DT_MAX:
-            dt_ms = _DT_MAX
-        if self._up_on:
-            u = self._up + dt_ms
-            self._up = u if u < (1 << 30) - _DT_MAX else self._up
-        c = self.comp
-        c.update(t)
-        t = c._t  # the reading as clamped to the proven input range
-        if self._ntau or self._nplay:
-            self._filters(t, dt_ms)
-        if self._f:
-            self._features(t, supply, acc)
-        f = self._f
-        if self._rho_on and t != self._rt:
-            self._rt = t
-            i = 0
-            while i < 3:
-                # G = gain * 2**(K+S) <= 2**28; G / G0 < 2 (the scale varies at most 2x)
-                self._rho[i] = div_pow2(((c._gh[i] << c._k) + c._gl[i]) >> 2, _Q, self._g0[i])
-                i += 1
-        gh = c._gh
-        gl = c._gl
-        b = c._b
-        K = c._k
-        S2 = c._s - 2
-        rnd = 1 << (S2 - 1)
-        lim = 1 << K
-        mid = c._mid
-        y0 = self._y0
-        inv = self._inv
-        i = 0
-        while i < 3:
-            fo = self._fo[i]
-            d = 0
-            cs = self._oc[i]
-            fi = self._oi[i]
-            j = 0
-            n = len(cs)
-            while j < n:
-                d += mul_shift(cs[j], f[fi[j]], 15)
-                j += 1
-            # dO = di + fr / 256 raw codes
-            di = d >> fo
-            fr = (d >> (fo - 8)) & 0xFF
-            r = raw[i] - mid - di
-            if r > lim:
-                r = lim
-                self.clamped += 1
-            elif r < -lim:
-                r = -lim
-                self.clamped += 1
-            g = gh[i]
-            y0[i] = (r * g + ((r * gl[i]) >> K) - b[i] - ((fr * g) >> 8) + rnd) >> S2
-            cs = self._gc[i]
-            n = len(cs)
-            if n:
-                fi = self._gi[i]
-                e = 0
-                j = 0
-                while j < n:
-                    e += mul_shift(cs[j], f[fi[j]], 15)
-                    j += 1
-                e = _mul28(self._rho[i], e)
-                # 1 / (1 + e) = 1 - e (1 - e (1 - e (1 - e))) + O(e**5), |e| <= 1/8
-                q = _ONE - e
-                q = _ONE - _mul28(e, q)
-                q = _ONE - _mul28(e, q)
-                inv[i] = _ONE - _mul28(e, q)
-            else:
-                inv[i] = _ONE
-            i += 1
-        y = self._y
-        if self._cross:
-            km = self._kmat
-            dtf = f[self._dti] if self._dti >= 0 else 0
-            i = 0
-            while i < 3:
-                ks = self._kk[i]
-                j = 0
-                while j < len(ks):
-                    km[i * 3 + ks[j]] = _mul28(self._rho[i], self._kc[i][j] + mul_shift(self._k1[i][j], dtf, 15))
-                    j += 1
-                y[i] = _mul28(y0[i], inv[i])
-                i += 1
-            it = 0
-            while it < 2:
-                # y = (y0 - K y) / (1 + e): a contraction (|K| <= 1/16), two steps leave ~|K|**3
-                a0 = y0[0] - _mul28(km[1], y[1]) - _mul28(km[2], y[2])
-                a1 = y0[1] - _mul28(km[3], y[0]) - _mul28(km[5], y[2])
-                a2 = y0[2] - _mul28(km[6], y[0]) - _mul28(km[7], y[1])
-                y[0] = _mul28(a0, inv[0])
-                y[1] = _mul28(a1, inv[1])
-                y[2] = _mul28(a2, inv[2])
-                it += 1
-        else:
-            y[0] = _mul28(y0[0], inv[0])
-            y[1] = _mul28(y0[1], inv[1])
-            y[2] = _mul28(y0[2], inv[2])
-        out[0] = (y[0] + 2) >> 2
-        out[1] = (y[1] + 2) >> 2
-        out[2] = (y[2] + 2) >> 2
+    def _check_burst(self, buf, out, n, dt_ms):
+        # apply_be16_n's arguments, by name (both kernels)
+        w = self._w
+        st = w[_STR]
+        if not 0 <= n < 32768 or not 0 <= dt_ms <= _DT_MAX:
+            raise ValueError("apply_be16_n: need 0 <= n < 32768 and 0 <= dt_ms <= %d, got n=%r dt_ms=%r"
+                             % (_DT_MAX, n, dt_ms))
+        if n and (n - 1) * st + w[_NEED] > len(buf):
+            raise ValueError("apply_be16_n: %d samples at stride %d need %d bytes, buf has %d"
+                             % (n, st, (n - 1) * st + w[_NEED], len(buf)))
+        if 3 * n > len(out):
+            raise ValueError("apply_be16_n: %d samples need %d outputs, out has %d" % (n, 3 * n, len(out)))
+
+    def _bind(self, raw, out, acc, burst):
+        # native: note the arrays' buffer addresses once they are checked 32-bit int arrays (and a
+        # burst's lengths, so a later call checks them by comparing), or raise the clear error
+        # of a wrong argument (the kernel reads and writes 32-bit words)
+        k = _kernel()
+        assert k is not None  # only the native kernel calls this
+        w = self._w
+        if burst:
+            if not k.buffer(raw):
+                raise ValueError("apply_be16_n: buf must be bytes, bytearray, memoryview or array, got %s"
+                                 % type(raw).__name__)
+            self._check_burst(raw, out, burst, 0)
+            k.note(w, _CBUF, raw)
+            w[_CBUFN] = len(raw)
+            self._aux[1 + _CBUF - _CRAW] = raw
+        for name, a, slot in (("out", out, _CBOUT if burst else _COUT), ("raw", raw, _CRAW),
+                              ("acc", acc, _CBACC if burst else _CACC)):
+            if name == "raw" and burst or name == "acc" and (not w[_FL] & _FACC or burst and w[_AOFF] >= 0):
+                continue
+            if not k.words(a, 3):
+                raise ValueError("%s must be an array('i') of at least 3 ints (the native kernel reads "
+                                 "and writes 32-bit words), got %s" % (name, type(a).__name__))
+            k.note(w, slot, a)
+            if slot == _CBOUT:
+                w[_CBOUTN] = len(a)
+            # the reference keeps the checked buffer alive, so no other object's takes its address
+            self._aux[1 + slot - _CRAW] = a
+
+    def _ticks(self):
+        # dt_ms = -1: the ms since the previous such sample by the port's clock (0 at the first)
+        w = self._w
+        now = _ticks()
+        dt = _ticks_diff(now, w[_LAST]) if w[_FL] & _FTICK else 0
+        w[_LAST] = now
+        w[_FL] |= _FTICK
+        return dt
+
+
+def _urec(c, i):
+    # Compensator c's update() of axis i as integers (augment_native runs it): the constant-scale
+    # form (degree fd >= 0, its coefficients and shift) or the scale and offset polynomials and
+    # the division's exponents
+    sp = c._sc[i]
+    op = c._off[i]
+    fd = c._fd[i]
+    r = [fd, c._fs[i] if fd >= 0 else 0] + (c._fq[4 * i:4 * i + 4] if fd >= 0 else [0] * 4)
+    a = list(sp._a) + [0] * (4 - len(sp._a))
+    r += [sp._deg, sp._mid, sp._xl, sp._xs, sp._vs, sp._vm, sp._a0h, sp._a0l, a[1], a[2], a[3]]
+    a = list(op._a) + [0] * (4 - len(op._a))
+    r += [op._deg, op._mid, op._xl, op._xs, op._vs, op._vr, op._a0, a[1], a[2], a[3]]
+    r += [c._wg[i], c._eo[i], c._eg[i]]
+    return r
 
 
 def _lp(taus, tau, drift=False):

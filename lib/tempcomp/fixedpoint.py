@@ -207,7 +207,7 @@ def _check_coeffs(name, coeffs):
     if n < 1 or n > _MAX_DEGREE + 1:
         raise ValueError("%s: degree %d not supported (0..%d)" % (name, n - 1, _MAX_DEGREE))
     for c in coeffs:
-        c = _fl(c)
+        c = to_float(c)
         if c != c or c in (float("inf"), float("-inf")):
             raise ValueError("%s: coefficient %r is not finite" % (name, c))
 
@@ -229,7 +229,7 @@ class Poly:
         while (1 << h) < half:
             h += 1
         # coefficients of x = (t - mid) / 2**h, so |x| <= 1 over the range
-        fc = [_fl(c) for c in coeffs]
+        fc = [to_float(c) for c in coeffs]
         fc[0] -= sub
         b = [v / div for v in shift_basis(fc, t_ref, mid)]
         self.t_range = (t_lo, t_hi)
@@ -390,7 +390,13 @@ def _exact_float(x):
     return int(x), e
 
 
-def _gcd(a, b):
+# The exact-coefficient helpers, public for the modules that hand this one (num, den) pairs
+# (tempcomp.mpu6xxx_tc's exact fit): the gcd that reduces a pair, a float's exact ratio, and a
+# pair's float value.
+
+
+def gcd(a, b):
+    """Greatest common divisor of two ints (non-negative)."""
     a = abs(a)
     b = abs(b)
     while b:
@@ -398,8 +404,8 @@ def _gcd(a, b):
     return a
 
 
-def _ratio(c):
-    # a coefficient as an exact (num, den) pair, den > 0: a float is the binary fraction it is
+def ratio(c):
+    """A coefficient as an exact (num, den) pair, den > 0: a float is the binary fraction it is."""
     if type(c) is tuple:
         return c
     if type(c) is int:
@@ -408,7 +414,7 @@ def _ratio(c):
     return (m, 1 << -e)
 
 
-def _fl(c):
+def to_float(c):
     """Float value of a coefficient: a number, or an exact pair (num, den) of ints, den > 0.
 
     Every coefficient the set-up takes may be such a pair (BiasModel's exact fits): the integers
@@ -466,13 +472,13 @@ def _exact_mid(coeffs, t_ref, mid, div, sub):
     if t_ref != int(t_ref):
         return None
     d = mid - int(t_ref)
-    rs = [_ratio(c) for c in coeffs]
-    dn, dd = _ratio(div)
+    rs = [ratio(c) for c in coeffs]
+    dn, dd = ratio(div)
     if dn <= 0:
         return None
     q = 1
     for _, r in rs:
-        q = q * r // _gcd(q, r)
+        q = q * r // gcd(q, r)
     m = [c * (q // r) for c, r in rs]
     m[0] -= sub * q
     out = []
@@ -1037,11 +1043,3 @@ def _gain_num(e, d):
     if e <= _VALUE_BITS:
         return div_pow2(1 << e, 0, d)
     return div_pow2(1 << _VALUE_BITS, e - _VALUE_BITS, d)
-
-
-# The exact-coefficient helpers, public for the modules that hand this one (num, den) pairs
-# (tempcomp.mpu6xxx_tc's exact fit): a float's exact ratio, the gcd that reduces a pair, and a
-# pair's float value. (Names given here, at the end, so the definitions above stay as they are.)
-ratio = _ratio
-gcd = _gcd
-to_float = _fl

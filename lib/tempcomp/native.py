@@ -96,7 +96,7 @@ class _Batch:
         if t is not None and n < 32768 and stride < 16384 and isinstance(buf, _BUFFERS):
             if type(out) is list:
                 tg = 0x8000  # store small-int objects (v << 1 | 1)
-            elif type(out) is array.array and _int32(out):
+            elif type(out) is array.array and int32(out):
                 tg = 0  # store the plain words
             else:
                 tg = -1
@@ -114,7 +114,7 @@ def _word(a) -> int:
     return ptr32(a)[1]
 
 
-def _int32(a):
+def int32(a):
     # True when array a stores 32-bit two's-complement words (typecode i, or l on 32-bit)
     x = a[0]
     y = a[1]

@@ -1,8 +1,11 @@
 """`make bench` figures of the augmented model (lib/tempcomp/augment.py): per-sample cost of the
 base model and of each term the gap diagnosis can add, as executed instructions on the
 MicroPython 1.27 firmware for a Cortex-M3 (qemu -icount: exact, whatever the host's load; the
-VM's time ratios to the unpack floor when the firmware is not built); bytes allocated per sample
-and the worst error against float64 (tools/simgap/devmodel.py) with every term on, in the VM."""
+VM's time ratios to the unpack floor when the firmware is not built), each beside its anchors
+measured in the same script: the plain compensator's sample (Compensator.apply_be16) and a
+careful float implementation of the same model; the native kernels against the pure-Python path;
+bytes allocated under heap_lock() on the firmware; and the worst error against float64
+(tools/simgap/devmodel.py) with every term on, in the VM."""
 
 import json
 import time
@@ -34,6 +37,7 @@ TERMS = {
                        {"kind": "acc", "axis": 2, "bound": 2.0}], [[0, 25.0], [1, -15.0], [2, 10.0]], [], []),
     "cross_axis": ([{"kind": "dT"}], [], [], [[1, 0.02, 1e-4], [2, -0.015, 0.0]]),
 }
+BATCH = 32
 
 
 def model(names):
@@ -73,13 +77,13 @@ def floor(n):
         i += 1
     return time.ticks_diff(time.ticks_ms(), t0)
 
-def run(ap, n, mask):
+def run(a, n, mask):
     # mask 63: the temperature reading changes every sample; 0: it stays (read less often)
     i = 0
     t = 2500
     t0 = time.ticks_ms()
     while i < n:
-        ap(t + (i & mask), raw, out, 1000, 3300, acc)
+        a.apply(t + (i & mask), raw, out, 1000, 3300, acc)
         i += 1
     return time.ticks_diff(time.ticks_ms(), t0)
 
@@ -89,62 +93,267 @@ for rep in range(%(reps)d):
     v = floor(%(n)d * 20) / 20
     best['floor'] = min(best.get('floor', 1e9), v)
     for name, a in augs:
-        ap = a.apply
         for mask, tag in ((0, ''), (63, '+t')):
-            v = run(ap, %(n)d, mask)
+            v = run(a, %(n)d, mask)
             best[name + tag] = min(best.get(name + tag, 1e9), v)
 for k in best:
     print('TIME', best[k], k)
 """
 
 
+# The float anchor: the same model in floats as careful code would run it on the board (the
+# temperature polynomials, the cross matrix and the filters' steps only when their input changes),
+# per sample the features, the terms and two steps of the cross-axis solve; floats allocate.
+FLOAT_MODEL = r"""
+import math
+class FloatModel:
+    def __init__(self, m):
+        self.m = m
+        tl = m['t_lsb']
+        to = m.get('t_off', 0.0)
+        self.tl = tl
+        self.to = to
+        self.t0a = round((m['t0'] - to) / tl) * tl + to
+        self.rl = m.get('raw_lsb', 1.0)
+        self.os = m['out_scale']
+        self.kinds = [f['kind'] for f in m.get('features', [])]
+        self.f = m.get('features', [])
+        self.v = [0.0] * len(self.f)
+        self.s = [0.0] * len(self.f)  # filter states
+        self.al = [0.0] * len(self.f)
+        self.up = 0.0
+        self.dt = None
+        self.t = None
+        self.first = True
+        self.s0 = [m['sensitivity'][i][0] for i in range(3)]
+        self.ot = (m.get('offset_terms') or [[], [], []])
+        self.gt = (m.get('gain_terms') or [[], [], []])
+        self.cr = (m.get('cross') or [[], [], []])
+        self.any_cross = any(self.cr)
+        self.o = [0.0, 0.0, 0.0]
+        self.g = [0.0, 0.0, 0.0]
+        self.rho = [1.0, 1.0, 1.0]
+        self.K = [[], [], []]
+        self.y0 = [0.0, 0.0, 0.0]
+        self.e = [1.0, 1.0, 1.0]
+        self.y = [0.0, 0.0, 0.0]
+    def update(self, t):
+        # once per reading: the polynomials, the gain, rho and the cross matrix
+        m = self.m
+        T = t * self.tl + self.to
+        d = T - m['t0']
+        self.T = T
+        self.dT = T - self.t0a
+        for i in range(3):
+            o = 0.0
+            for c in reversed(m['offset'][i]):
+                o = o * d + c
+            s = 0.0
+            for c in reversed(m['sensitivity'][i]):
+                s = s * d + c
+            self.o[i] = o + 0.5 * s / self.os  # round half up by truncation below
+            self.g[i] = self.os / s
+            self.rho[i] = self.s0[i] / s
+            self.K[i] = [(int(k), self.rho[i] * (k0 + k1 * self.dT)) for k, k0, k1 in self.cr[i]]
+        self.t = t
+    def apply(self, t, raw, out, dt_ms, supply, acc):
+        if t != self.t:
+            self.update(t)
+        T = self.T
+        if self.kinds:
+            m = self.m
+            self.up += dt_ms * 0.001
+            if dt_ms != self.dt:
+                self.dt = dt_ms
+                for j in range(len(self.f)):
+                    if 'tau' in self.f[j]:
+                        self.al[j] = 1.0 - math.exp(-dt_ms * 0.001 / self.f[j]['tau'])
+            v = self.v
+            for j in range(len(self.kinds)):
+                k = self.kinds[j]
+                f = self.f[j]
+                if k == 'dT':
+                    x = self.dT
+                elif k == 'lag':
+                    s = T if self.first else self.s[j] + self.al[j] * (T - self.s[j])
+                    self.s[j] = s
+                    x = T - s
+                elif k == 'play':
+                    h = f['width'] * 0.5
+                    p = T if self.first else self.s[j]
+                    if T - h > p:
+                        p = T - h
+                    elif T + h < p:
+                        p = T + h
+                    self.s[j] = p
+                    x = p - T
+                elif k == 'drift_exp':
+                    s = 1.0 if self.first else self.s[j] - self.al[j] * self.s[j]
+                    self.s[j] = s
+                    x = s
+                elif k == 'drift_hyp':
+                    x = 1.0 / (1.0 + self.up / f['tau'])
+                elif k == 'uptime':
+                    x = self.up
+                elif k == 'supply':
+                    x = supply * m['supply_lsb'] - m['supply0']
+                elif k == 'acc':
+                    x = acc[f['axis']] * m['acc_lsb']
+                else:
+                    x = v[f['a']] * v[f['b']]
+                v[j] = x
+            self.first = False
+            for i in range(3):
+                d = 0.0
+                for fi, c in self.ot[i]:
+                    d += c * v[fi]
+                e = 0.0
+                for fi, c in self.gt[i]:
+                    e += c * v[fi]
+                self.y0[i] = (raw[i] * self.rl - self.o[i] - d) * self.g[i]
+                self.e[i] = 1.0 + self.rho[i] * e
+        else:
+            for i in range(3):
+                self.y0[i] = (raw[i] * self.rl - self.o[i]) * self.g[i]
+                self.e[i] = 1.0
+        y0 = self.y0
+        e = self.e
+        y = self.y
+        y[0] = y0[0] / e[0]
+        y[1] = y0[1] / e[1]
+        y[2] = y0[2] / e[2]
+        if self.any_cross:
+            for _ in range(2):
+                n0 = y0[0]
+                for k, c in self.K[0]:
+                    n0 -= c * y[k]
+                n1 = y0[1]
+                for k, c in self.K[1]:
+                    n1 -= c * y[k]
+                n2 = y0[2]
+                for k, c in self.K[2]:
+                    n2 -= c * y[k]
+                y[0] = n0 / e[0]
+                y[1] = n1 / e[1]
+                y[2] = n2 / e[2]
+        out[0] = int(y[0])
+        out[1] = int(y[1])
+        out[2] = int(y[2])
+"""
+
 FW_BENCH = r"""
-import gc, time
+import gc, time, micropython
 from array import array
-from tempcomp.augment import Augmented
+from tempcomp import augment
 pad = bytearray(%(pad)d)  # moves the objects: the attribute caches then hit differently
-a = Augmented(%(model)s)
+M = %(model)s
+NAME = %(name)r
+N = %(n)d
+B = %(batch)d
 raw = array('i', [1200, -800, 300]); out = array('i', [0, 0, 0]); acc = array('i', [100, -300, 950])
-ap = a.apply
+outl = [0, 0, 0]
 buf = bytearray(b"\x80\x00\x12\x34\x7f\xff")
-
-%(unpack)s
-def run(n, mask):
-    i = 0
-    t0 = time.ticks_us()
-    while i < n:
-        ap(2500 + (i & mask), raw, out, 1000, 3300, acc)
-        i += 1
-    return time.ticks_diff(time.ticks_us(), t0)
-
-def floor(n):
-    i = 0
-    t0 = time.ticks_us()
-    while i < n:
-        unpack(buf, out)
-        i += 1
-    return time.ticks_diff(time.ticks_us(), t0)
-
+bufn = bytearray(bytes(buf) * B)
+outn = array('i', [0] * (3 * B))
+%(float_model)s
 def empty(n):
     i = 0
     t0 = time.ticks_us()
     while i < n:
         i += 1
     return time.ticks_diff(time.ticks_us(), t0)
-
-N = %(n)d
-run(4, 63)
-# each loop after a collection, as tools/bench/instructions.py measures: a call whose frame passes
-# 11 words (apply, update) takes it from the heap and frees it on return, and that search costs
-# more the fuller the heap is (here the set-up's garbage: 18,000 against 2,600 instructions for
-# an update() that returns at once), which is the heap's state, not the model's cost
+def empty_t(n):
+    i = 0
+    t0 = time.ticks_us()
+    while i < n:
+        t = 2500 + (i & 63)
+        i += 1
+    return time.ticks_diff(time.ticks_us(), t0)
+def run(a, n, raw=raw, out=out, acc=acc):
+    # the documented call, everything a local: a direct method call passes the arguments
+    # without copying them (a bound method made beforehand copies more than 4 through the heap)
+    i = 0
+    t0 = time.ticks_us()
+    while i < n:
+        a.apply(2500, raw, out, 1000, 3300, acc)
+        i += 1
+    return time.ticks_diff(time.ticks_us(), t0)
+def run_t(a, n, raw=raw, out=out, acc=acc):
+    i = 0
+    t0 = time.ticks_us()
+    while i < n:
+        a.apply(2500 + (i & 63), raw, out, 1000, 3300, acc)
+        i += 1
+    return time.ticks_diff(time.ticks_us(), t0)
+def run_b(a, n, buf=bufn, out=outn, acc=acc):
+    i = 0
+    t0 = time.ticks_us()
+    while i < n:
+        a.apply_be16_n(2500, buf, out, B, 1000, 3300, acc)
+        i += 1
+    return time.ticks_diff(time.ticks_us(), t0)
+def run_c(ap, n, buf=buf, out=outl):
+    i = 0
+    t0 = time.ticks_us()
+    while i < n:
+        ap(buf, out)
+        i += 1
+    return time.ticks_diff(time.ticks_us(), t0)
+def run_cn(ap, n, buf=bufn, out=outn):
+    i = 0
+    t0 = time.ticks_us()
+    while i < n:
+        ap(buf, out, B)
+        i += 1
+    return time.ticks_diff(time.ticks_us(), t0)
+def locked(a):
+    # zero allocation: a sample and a burst under heap_lock()
+    micropython.heap_lock()
+    try:
+        run(a, 3)
+        run_t(a, 3)
+        run_b(a, 2)
+        ok = 'ok'
+    except MemoryError:
+        ok = 'FAIL'
+    micropython.heap_unlock()
+    return ok
+res = {}
+def put(k, d, n, e):
+    res[k] = (d - e) * 1000 // n
 gc.collect(); e = empty(N)
-gc.collect(); fl = floor(N)
-gc.collect(); r0 = run(N, 0)
-gc.collect(); r1 = run(N, 63)
-print('INSN', (fl - e) * 1000 // N, (r0 - e) * 1000 // N, (r1 - e) * 1000 // N)
+gc.collect(); et = empty_t(N)
+for mode in %(modes)r:
+    augment.use_native(mode)
+    a = augment.Augmented(M)
+    tag = '' if mode is None else '_pure'
+    n = N if mode is None else max(4, N // 20)
+    run_t(a, 2)
+    run_b(a, 1)
+    a.apply(2500, raw, out, 1000, 3300, acc)
+    gc.collect(); put('c' + tag, run(a, n), n, e * n // N)
+    gc.collect(); put('t' + tag, run_t(a, n), n, et * n // N)
+    if mode is None:
+        nb = max(2, N // B)
+        gc.collect(); put('b', run_b(a, nb), nb * B, e * nb // N)
+        res['lock'] = locked(a)
+    if NAME == 'base' and mode is None:
+        ap = a.comp.apply_be16
+        gc.collect(); put('plain', run_c(ap, N), N, e)
+        gc.collect(); put('plain_arr', run_c(ap, N, buf, out), N, e)
+        apn = a.comp.apply_be16_n
+        nb = max(2, N // B)
+        gc.collect(); put('plain_b', run_cn(apn, nb), nb * B, e * nb // N)
+    a = None
+augment.use_native(None)
+if %(anchor)d:
+    f = FloatModel(M)
+    f.apply(2500, raw, out, 1000, 3300, acc)
+    n = max(4, N // 10)
+    gc.collect(); put('float', run(f, n), n, e * n // N)
+    gc.collect(); put('float_t', run_t(f, n), n, et * n // N)
+print('INSN', json.dumps(res))
 """
-
 
 PADS = (0, 700, 2100, 4900, 9100)
 
@@ -164,12 +373,15 @@ print('RAM', f0 - f1, f1 - f2, f2 - f3, f3 - f4)
 
 
 def firmware_costs(models, n=200):
-    """{name: (floor, constant reading, changing reading)} instructions per sample on the
-    Cortex-M3 firmware, each loop after gc.collect() and each the least over PADS heap layouts
-    (MicroPython's attribute-lookup caches and its heap-allocated call frames make one layout's
-    count differ from another's, and the UART interrupts of the host mount add counts that
-    depend on the host's timing), and
-    {name: (lo, hi)} of the constant-reading count; (None, reason) when it is not built."""
+    """{name: {key: instructions per sample}} on the Cortex-M3 firmware, each loop after
+    gc.collect() and net of an empty loop, the least over PADS heap layouts (MicroPython's
+    attribute-lookup caches make one layout's count differ from another's, and the UART
+    interrupts of the host mount only ever add): c / t the model with the reading unchanged /
+    changing every sample, b per sample of a burst of BATCH, *_pure the same forced to pure
+    Python, float / float_t the float anchor, plain / plain_arr / plain_b the plain compensator's
+    apply_be16 into a list / an array and its burst; lock 'ok' when a sample and a burst ran
+    under heap_lock(). Plus {name: (lo, hi)} of the constant-reading count over the layouts;
+    (None, None, reason) when the firmware is not built."""
     why = interp.missing("an385")
     if why:
         return None, None, why
@@ -179,13 +391,21 @@ def firmware_costs(models, n=200):
         res["ram"] = tuple(int(v) for v in [ln for ln in out.splitlines() if ln.startswith("RAM ")][0].split()[1:])
         for name, m in models:
             runs = []
+            anchor = name in ("base", "every term")
+            modes = [None, False] if anchor else [None]
             for pad in PADS:
-                out = it.run(FW_BENCH % {"model": json.dumps(m), "n": n, "pad": pad, "unpack": UNPACK_FLOOR}, timeout=600)
+                out = it.run("import json\n" + FW_BENCH % {
+                    "model": json.dumps(m), "name": name, "n": n, "pad": pad, "batch": BATCH, "modes": modes,
+                    "anchor": int(anchor and pad == 0), "float_model": FLOAT_MODEL if anchor and pad == 0 else ""},
+                    timeout=900)
                 line = [ln for ln in out.splitlines() if ln.startswith("INSN ")][0]
-                runs.append(tuple(int(v) for v in line.split()[1:]))
-            # the least of the layouts: the UART's interrupts (the host mount) only ever add
-            res[name] = tuple(min(r[k] for r in runs) for k in range(3))
-            spread[name] = (min(r[1] for r in runs), max(r[1] for r in runs))
+                runs.append(json.loads(line[5:]))
+            best = {}
+            for r in runs:
+                for k, v in r.items():
+                    best[k] = v if k == "lock" and best.get(k, "ok") == "ok" else (min(best[k], v) if k in best else v)
+            res[name] = best
+            spread[name] = (min(r["c"] for r in runs), max(r["c"] for r in runs))
     return res, spread, None
 
 
@@ -195,22 +415,40 @@ def bench(report):
     models = [("base", model([]))] + [(n, model([n])) for n in TERMS] + [("every term", model(list(TERMS)))]
     fw, spread, why = firmware_costs(models)
     if fw is not None:
-        fl = fw["base"][0]
-        report("augment: base model per 3-axis sample (Cortex-M3 firmware, reading unchanged)", fw["base"][1],
-               "instructions (%.1fx the unpack floor; %d..%d over %d heap layouts)"
-               % (fw["base"][1] / fl, spread["base"][0], spread["base"][1], len(PADS)))
-        report("augment: same, temperature reading changing every sample", fw["base"][2],
-               "instructions (%.1fx)" % (fw["base"][2] / fl))
-        for n in names[1:]:
-            report("augment: + %s, extra per sample" % n, fw[n][1] - fw["base"][1],
-                   "instructions (%.1fx the floor; total %d..%d)" % ((fw[n][1] - fw["base"][1]) / fl,
-                                                                     spread[n][0], spread[n][1]))
-        report("augment: every term, reading changing every sample", fw["every term"][2],
-               "instructions (%.1fx)" % (fw["every term"][2] / fl))
+        b, ev = fw["base"], fw["every term"]
+        pl = b["plain"]
+        report("augment: plain Compensator.apply_be16 per 3-axis sample, into a list / an array('i') "
+               "(Cortex-M3 firmware)", "%d / %d" % (pl, b["plain_arr"]), "instructions")
+        report("augment: base model through the augmented path, reading unchanged", b["c"],
+               "instructions (%.2fx the plain sample, target <= 1.5; %d..%d over %d heap layouts)"
+               % (b["c"] / pl, spread["base"][0], spread["base"][1], len(PADS)))
+        report("augment: same, reading changing every sample", b["t"], "instructions")
+        report("augment: same, per sample of a burst of %d (plain apply_be16_n: %d)" % (BATCH, b["plain_b"]),
+               b["b"], "instructions")
+        report("augment: base model, float anchor (careful float code), reading unchanged / changing",
+               "%d / %d" % (b["float"], b["float_t"]), "instructions")
+        worst = 0
+        for n in names[1:-1]:
+            x = fw[n]["c"] - b["c"]
+            worst = max(worst, x)
+            report("augment: + %s, extra per sample" % n, x,
+                   "instructions (reading changing: +%d; burst: +%d)" % (fw[n]["t"] - b["t"], fw[n]["b"] - b["b"]))
+        report("augment: largest single term's extra (target <= 1,500)", worst, "instructions")
+        report("augment: every term, reading unchanged", ev["c"], "instructions (float anchor %d)" % ev["float"])
+        report("augment: every term, reading changing every sample (target <= 8,000)", ev["t"],
+               "instructions (float anchor %d)" % ev["float_t"])
+        report("augment: every term, per sample of a burst of %d (target <= 2,000)" % BATCH, ev["b"], "instructions")
+        report("augment: pure-Python path forced (use_native(False)): base / every term, reading unchanged",
+               "%d / %d" % (b["c_pure"], ev["c_pure"]), "instructions")
+        report("augment: pure-Python path forced: base / every term, reading changing",
+               "%d / %d" % (b["t_pure"], ev["t_pure"]), "instructions")
+        locks = sorted({fw[n]["lock"] for n in names})
+        report("augment: samples and bursts under heap_lock() on the Cortex-M3 firmware, every model",
+               "ok" if locks == ["ok"] else "FAIL", "")
         ram = fw["ram"]
         report("augment: heap for the module (.mpy) on the Cortex-M3 firmware (fixedpoint: %d)" % ram[0], ram[1], "B")
-        report("augment: heap of a first Augmented (base; with first-use interning) / a second (every term)",
-               "%d / %d" % (ram[2], ram[3]), "B")
+        report("augment: heap of a first Augmented (base; with the native kernels' import) / a second "
+               "(every term)", "%d / %d" % (ram[2], ram[3]), "B")
         report("augment: Cortex-M3 firmware run wall time", time.time() - t0, "s")
         _vm_precision(report, time.time())
         return

@@ -39,7 +39,7 @@ def mpy_cross():
 # compile the kernels for itself.
 NATIVE_ARCH = "armv7m"
 M0_ARCH = "armv6m"
-THUMB1_ONLY = ("tempcomp/thumb.py",)  # asm_thumb with Thumb-1 instructions only
+THUMB1_ONLY = ("tempcomp/thumb.py", "tempcomp/augment_thumb.py")  # asm_thumb with Thumb-1 instructions only
 
 
 def _is_native(src):

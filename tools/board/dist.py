@@ -10,9 +10,10 @@ Writes ``OUTDIR/mpy-v<major>.<minor>/package.json`` next to the compiled ``tempc
 installs them as mip installs any package (also from a web server or a GitHub tree holding the
 directory). The .py package is the repository's own ``package.json``. A bytecode .mpy loads on
 any MicroPython with the same major .mpy version (6: MicroPython 1.22 and later, the library's
-floor); the two native-kernel modules (``native``, ``thumb``) are compiled for ARMv7-M
-(Cortex-M3/M4/M7) and elsewhere refuse to load, which the fixed-point core catches and answers
-with its pure-Python path (same results). docs/install.md says which package fits which board.
+floor); the native-kernel modules (``native`` and ``augment_native`` for ARMv7-M, Cortex-M3/M4/M7,
+with ``_m0`` twins for ARMv6-M; ``thumb`` and ``augment_thumb``, Thumb-1 only) refuse to load
+elsewhere, which the fixed-point core and the augmented model catch and answer with their
+pure-Python paths (same results). docs/install.md says which package fits which board.
 """
 
 import argparse

@@ -397,9 +397,15 @@ def main(argv=None):
     if gap_png:
         say("gap plot: %s" % os.path.relpath(gap_png, REPO))
         with open(os.path.join(os.path.dirname(gap_png), "tofupilot_gyro.json")) as f:
-            verdict = json.load(f)["verdict"]
+            res = json.load(f)
+        verdict = res["verdict"]
+        left = ["%s %.1fx" % (w["axis"], w["ratio"]) for w in res["warnings"]
+                if w["code"] == "unexplained_residual"]
+        what = (", ".join(verdict) if verdict else "no catalogue effect that survives its noise model")
+        if left:
+            what += "; left unexplained (x the noise model's floor): " + ", ".join(left)
         done.append("diagnosed a real IMU log: the temperature model misses %s (%s)" % (
-            ", ".join(verdict) or "nothing above the noise floor", os.path.relpath(gap_png, REPO)))
+            what, os.path.relpath(gap_png, REPO)))
 
     header(9, "the diagnosis on the board: export, store, restore, before/after on the withheld part")
     if gap_png:

@@ -68,7 +68,10 @@ def effect_entry(ctx, name, shape, coef, axis, causal_temp):
         e.update(form=shape, v0=_f(ctx.supply_mean), coef=dict(zip(SUPPLY_TERMS[shape], c)))
     elif name == "drift":
         f, tau = shape
-        e.update(form=f, tau_s=_f(tau), coef={"amplitude": c[0]})
+        if f == "linear":
+            e.update(form=f, tau_s=0.0, coef={"slope_per_s": c[0]})
+        else:
+            e.update(form=f, tau_s=_f(tau), coef={"amplitude": c[0]})
         if f == "exp+linear":
             e["coef"]["slope_per_s"] = c[1]
     elif name == "temp_quantization":
@@ -199,6 +202,8 @@ def _effect_value(model, e, log, p, axis, T, dT, ref):
         cols = {"v": v, "v_sq": v * v, "v_ref": v * ref, "v_dT": v * dT}
         return sum(c[k] * cols[k] for k in c)
     if n == "drift":
+        if e["form"] == "linear":
+            return c["slope_per_s"] * p.ton
         x = p.ton / e["tau_s"]
         if e["form"] == "hyperbolic":
             return c["amplitude"] / (1.0 + x)

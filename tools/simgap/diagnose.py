@@ -1,22 +1,24 @@
 """The whole diagnosis of one training log (and optional withheld log): returns the JSON
 contract as a dict, plus the arrays the plot needs.
 
-Order matters for honesty: coverage and identifiability are checked first; effects are chosen
-and judged on held-out segments of the training log only; the plausibility table removes
-fitting artefacts; only then is the withheld log scored, once, with the chosen model."""
+Order matters for honesty: coverage and identifiability are checked first; the noise model
+is estimated with the effects in; effects are chosen and judged under it on held-out segments
+of the training log only; a datasheet bound may keep one out; only then is the withheld log
+scored, once, with the chosen model, against the floor the noise model predicts there."""
 import numpy as np
 
-from . import augmented, coverage, noise, plausible, prep
+from . import augmented, coverage, noise, plausible, prep, uncertainty
 from .effects import CATALOGUE
 from .fit import Problem
 from .logio import AXES
-from .select import Greedy, design_gaps
+from .select import Greedy, design_gaps, wander_needs
 from .where import localise
 
-RATIO_WARN = 1.5        # final RMS over the floor above which the residual is called unexplained
+RATIO_WARN = 1.5        # final RMS over the model floor above which the residual is unexplained
+BOOT_REPS = 300         # block-bootstrap replicates of every shrink and final RMS interval
 COVERED_MIN = 0.95      # fraction of withheld rows inside the training coverage
 QUANT_WARN = 1.0        # output step over the noise floor above which quantisation is reported
-MAX_ROWS = 100_000      # longer logs are diagnosed on every k-th row (rows.stride)
+MAX_ROWS = 30_000       # longer logs are diagnosed on every k-th row (rows.stride)
 TOB_T = 5.0             # t (effective samples) of a constant shift on a separate power-on
 TOB_GAIN = 0.2          # ... and removing it must cut the withheld RMS by 20 %
 
@@ -35,8 +37,9 @@ def _warn(code, message, **kw):
 
 def _thin(log):
     """Every k-th row of a log longer than MAX_ROWS (k = ceil(n / MAX_ROWS)), and k. A
-    temperature log's effects live over minutes; 100,000 rows resolve them, and the fit's cost
-    and memory stay bounded (1 M + 1 M rows in well under a minute on one core)."""
+    temperature log's effects live over minutes; 30,000 rows resolve them, thinning keeps the
+    noise model's family (white stays white, a walk's increments add), and the fit's cost and
+    memory stay bounded (1 M + 1 M rows within a minute on one core)."""
     if log is None or len(log) <= MAX_ROWS:
         return log, 1
     k = int(np.ceil(len(log) / MAX_ROWS))
@@ -67,29 +70,35 @@ def diagnose(train, withheld=None, model=None):
                     "operating range to identify them.", axis=AXES[a], span_c=ctx.tmax - ctx.tmin))
                 break
 
-    # 2. Choose effects on held-out segments of the training log.
+    # 2. Choose effects under the noise model on held-out segments of the training log.
     g = Greedy(prob, sigma_t)
     g.run()
     g.refine()
     pruned = g.prune()
 
-    # 3. Plausibility: implausible fits leave the model (and the verdict).
+    # 3. Plausibility: every size outside the table is reported; only a datasheet bound on
+    #    that coefficient alone keeps the effect out of the verdict.
     implausible = []
     for a in range(3):
+        seen = set()
         while g.state[a]:
-            bad = plausible.check(prob, a, g.state[a])
+            bad = [b for b in plausible.check(prob, a, g.state[a]) if b[0] not in seen]
             if not bad:
                 break
-            name, size, limit, unit, basis = max(bad, key=lambda b: b[1] / b[2])
-            g.state[a] = [(n, s) for n, s in g.state[a] if n != name]
+            name, size, limit, unit, basis, veto = max(bad, key=lambda b: (b[5], b[1] / b[2]))
+            seen.add(name)
+            if veto:
+                g.state[a] = [(n, s) for n, s in g.state[a] if n != name]
             implausible.append({"effect": name, "axis": AXES[a], "size": size, "limit": limit,
-                                "unit": unit, "basis": basis})
+                                "unit": unit, "basis": basis, "kept_out": bool(veto)})
             warnings.append(_warn(
                 "implausible_coefficient",
                 f"{name} on {AXES[a]} fitted {size:.3g} {unit}, beyond the {limit:g} {unit} a "
-                f"{ctx.sensor} shows ({basis}); kept out of the verdict as a fitting artefact",
+                f"{ctx.sensor} shows ({basis}); "
+                + ("kept out of the verdict: a datasheet bound" if veto else
+                   "kept: the bound is a rule of thumb, not a datasheet limit - check the set-up"),
                 effect=name, axis=AXES[a], size=size, limit=limit, unit=unit))
-        g.cur[a] = prob.evaluate(a, g.state[a], withheld=False)
+    g.finalise()
     order = []
     for s in g.steps:
         if s["chosen"] and s["chosen"] not in order and any(
@@ -110,8 +119,8 @@ def diagnose(train, withheld=None, model=None):
         cov["withheld_covered_fraction"] = frac
         cov["differences"] = coverage.differences(cov["train"], cov["withheld"])
         q_w = prep.output_step(withheld)
-        base_w = np.column_stack([prob.full_residual(pw, a, []) for a in range(3)])
-        sigma = prep.noise_floor(base_w, withheld, pw.mask, q_w)
+        base_w0 = np.column_stack([prob.full_residual(pw, a, []) for a in range(3)])
+        sigma = prep.noise_floor(base_w0, withheld, pw.mask, q_w)
         outside = frac < COVERED_MIN
         if outside:
             w = cov["withheld"]
@@ -127,39 +136,75 @@ def diagnose(train, withheld=None, model=None):
             rows = pw.mask.copy()   # nothing covered: report on all rows, flagged below
         source = f"withheld log {withheld.name}" + (
             f" ({int(rows.sum())} covered rows)" if outside else "")
+        # A separate power-on (no power_on_s) starts from its own bias: on an axis whose
+        # bias wanders, its level is unknowable, so every model is scored with each withheld
+        # run's mean removed (a constant captured at start-up), and so is the floor.
+        separate = "power_on_s" not in withheld.meta
+        wrun = (withheld.run if withheld.run is not None else np.zeros(len(withheld), int))[rows]
+        dm = {}
+        for a in range(3):
+            dm[a] = separate and not prob.noise[a].is_white
+
+        def scored(a, r):
+            r = r[rows]
+            if not dm[a]:
+                return r
+            r = r.copy()
+            for run in np.unique(wrun):
+                r[wrun == run] -= np.mean(r[wrun == run])
+            return r
+
+        extras["scored"] = scored
         # The withheld log may veto, never add: an effect that makes the covered withheld
         # residual worse on its axis is taken out (reported in not_confirmed). What is left
         # is scored once.
         if not outside:
             for a in range(3):
+                wanders = not prob.noise[a].is_white
                 while g.state[a]:
-                    full = _rms(prob.full_residual(pw, a, g.state[a])[rows])
+                    rf = scored(a, prob.full_residual(pw, a, g.state[a]))
+                    full = _rms(rf)
                     worst = None
                     for i, (n, _) in enumerate(g.state[a]):
                         without = g.state[a][:i] + g.state[a][i + 1:]
-                        w = _rms(prob.full_residual(pw, a, without)[rows])
-                        if w < full and (worst is None or w < worst[1]):
-                            worst = (i, w)
+                        r0 = scored(a, prob.full_residual(pw, a, without))
+                        w = _rms(r0)
+                        lo = None
+                        if wanders and w >= full:
+                            # Under a wandering bias the training log alone cannot always
+                            # tell an effect from the walk; the withheld log (a repeat) must
+                            # confirm it: its shrink's 90 % interval (block bootstrap, block
+                            # length from the noise model) must exclude 0.
+                            lo = uncertainty.shrink_interval(
+                                r0, rf, uncertainty.block_length(prob.noise[a], rf))[0]
+                        bad = w < full or (lo is not None and lo <= 0)
+                        if bad and (worst is None or w < worst[1]):
+                            worst = (i, w, lo)
                     if worst is None:
                         break
                     n = g.state[a][worst[0]][0]
-                    not_confirmed.append({"effect": n, "axis": AXES[a],
-                                          "withheld_rms_with": full, "withheld_rms_without": worst[1]})
+                    rec = {"effect": n, "axis": AXES[a], "withheld_rms_with": full,
+                           "withheld_rms_without": worst[1]}
+                    if worst[2] is not None and worst[1] >= full:
+                        rec["reason"] = ("the bias wanders and the withheld shrink's 90 % interval "
+                                         f"reaches {worst[2]:.3g}: not confirmed")
+                    not_confirmed.append(rec)
                     del g.state[a][worst[0]]
-                g.cur[a] = prob.evaluate(a, g.state[a], withheld=False)
+            g.finalise()
+            for a in range(3):
+                dm[a] = separate and not prob.noise[a].is_white
             verdict[:] = [v for v in verdict if any(n == v for a in range(3) for n, _ in g.state[a])]
             order[:] = [v for v in order if v in verdict]
+        base_w = np.column_stack([prob.full_residual(pw, a, []) for a in range(3)])
         score = {a: prob.full_residual(pw, a, g.state[a]) for a in range(3)}
-        sim_only = [_rms(base_w[rows, a]) for a in range(3)]
+        sim_only = [_rms(scored(a, base_w[:, a])) for a in range(3)]
         # Turn-on bias across logs: a withheld log from its own power-on(s) may sit at a
         # constant shift per axis and run, which a user captures at start-up: the mean of
         # the first 5 % (at least 50 rows) of each run, applied to the whole run.
-        separate = "power_on_s" not in withheld.meta
-        wrun = (withheld.run if withheld.run is not None else np.zeros(len(withheld), int))[rows]
         corr = {}
         if separate and not outside:
             for a in range(3):
-                if any(n == "turn_on_bias" for n, _ in g.state[a]):
+                if any(n == "turn_on_bias" for n, _ in g.state[a]) or dm[a]:
                     continue      # each withheld run already gets its own constant
                 r = score[a][rows]
                 c = np.zeros_like(r)
@@ -186,8 +231,26 @@ def diagnose(train, withheld=None, model=None):
                     tob_shift[a] = shifts
             if tob_shift and "turn_on_bias" not in verdict:
                 verdict.append("turn_on_bias")
-        final_resid = {a: score[a][rows] - corr.get(a, 0.0) for a in range(3)}
+        final_resid = {a: scored(a, score[a]) - corr.get(a, 0.0) for a in range(3)}
         final = [_rms(final_resid[a]) for a in range(3)]
+        # The floor a perfect model would still leave there: white (the withheld log's own
+        # first differences) plus what the noise model's slow terms add over each run.
+        floor = []
+        wl = withheld
+        dtt = ctx.dt
+        for a in range(3):
+            nm = prob.noise[a]
+            sets = []
+            tw = wl.t[rows]
+            if separate:
+                for run in np.unique(wrun):
+                    sel = wrun == run
+                    sets.append(((tw[sel] - tw[sel][0]) / dtt, dm[a]))
+            else:
+                ton = pw.ton[rows]
+                sets.append((np.maximum(ton, 0) / dtt, False))
+            slow = max(0.0, nm.floor_ms(sets) - nm.s2 * (1 - (1 / max(1, rows.sum()) if dm[a] else 0)))
+            floor.append(float(np.sqrt(sigma[a] ** 2 + slow)))
         extras.update(base_withheld=base_w, score_withheld=score, withheld_rows=rows,
                       tob_shift=tob_shift, tob_corr=corr)
     else:
@@ -197,6 +260,9 @@ def diagnose(train, withheld=None, model=None):
         sim_only = [_rms(prob.evaluate(a, [], withheld=False)["cv"]) for a in range(3)]
         final = [_rms(g.cur[a]["cv"]) for a in range(3)]
         final_resid = {a: g.cur[a]["cv"] for a in range(3)}
+        # Held-out one-step-ahead innovations: a perfect model leaves the innovation sd.
+        floor = [float(sigma[a] if prob.noise[a].is_white else np.sqrt(g.cur[a]["s2"]))
+                 for a in range(3)]
         outside = False
 
     # 5. What the residual is made of.
@@ -210,26 +276,45 @@ def diagnose(train, withheld=None, model=None):
                 f"{q / np.sqrt(12):.3g} {train.unit} RMS and outliers are judged against it",
                 axis=AXES[a], step=float(q)))
     noise_kind = {}
+    noise_json = {}
+    tu = "row" if "row index" in train.meta.get("time", "") else "s"
     for a in range(3):
-        kind, ratio = noise.classify(final_resid[a] - np.mean(final_resid[a]), sigma[a])
-        noise_kind[AXES[a]] = {"kind": kind, "allan_ratio": ratio}
-        if kind != "white":
+        nm = prob.noise[a]
+        info = g.noise_info.get(a, {}).get("final")
+        kind = noise.describe(nm, sigma_t[a])
+        _, ratio_a = noise.classify(final_resid[a] - np.mean(final_resid[a]), sigma[a])
+        noise_kind[AXES[a]] = {"kind": kind, "allan_ratio": ratio_a}
+        noise_json[AXES[a]] = nm.to_json(train.unit, tu, info["allan"] if info else None,
+                                         info["allan_fit"] if info else None)
+        noise_json[AXES[a]]["white_floor_train"] = float(sigma_t[a])
+        if not nm.is_white:
+            rw = noise_json[AXES[a]]["random_walk"]
+            bi = noise_json[AXES[a]]["bias_instability"]
+            parts = ([f"random walk K = {rw['K']:.3g} {rw['unit']}"] if rw else []) + \
+                ([f"bias instability {bi['sigma']:.3g} {train.unit}, Tc {bi['tau_c']:.3g} {tu}"]
+                 if bi else [])
             warnings.append(_warn(
                 "correlated_noise",
-                f"{AXES[a]}: the final residual is not white - {kind} (Allan deviation at the "
-                f"longest averaging time {ratio:.2g}x what white noise gives); significance uses "
-                "blocks as long as its autocorrelation time, and no temperature model removes it",
-                axis=AXES[a], kind=kind, allan_ratio=ratio))
-    ratio = {AXES[a]: float(final[a] / sigma[a]) if sigma[a] > 0 else None for a in range(3)}
+                f"{AXES[a]}: the bias wanders - {', '.join(parts)} (Allan deviation of the final "
+                f"residual at the longest averaging time {ratio_a:.2g}x white noise's); effects are "
+                "fitted and judged under this noise model, and the floor includes what it adds",
+                axis=AXES[a], kind=kind, allan_ratio=ratio_a))
+    ratio = {AXES[a]: float(final[a] / floor[a]) if floor[a] > 0 else None for a in range(3)}
+    ratio_white = {AXES[a]: float(final[a] / sigma[a]) if sigma[a] > 0 else None for a in range(3)}
     for a in range(3):
         if ratio[AXES[a]] is not None and ratio[AXES[a]] > RATIO_WARN:
             warnings.append(_warn(
                 "unexplained_residual",
                 f"{AXES[a]}: the final {'withheld ' if withheld is not None else 'held-out '}"
-                f"RMS is {ratio[AXES[a]]:.2f}x the noise floor "
-                f"({final[a]:.4g} vs {sigma[a]:.4g} {train.unit})"
+                f"RMS is {ratio[AXES[a]]:.2f}x the noise model's floor "
+                f"({final[a]:.4g} vs {floor[a]:.4g} {train.unit}; white floor {sigma[a]:.4g})"
                 + ("" if verdict else "; no effect in the catalogue explains it"),
                 axis=AXES[a], ratio=ratio[AXES[a]]))
+    # Intervals: the final RMS (and its ratio) by a block bootstrap whose block length comes
+    # from the noise model.
+    blocks_len = {a: uncertainty.block_length(prob.noise[a], final_resid[a]) for a in range(3)}
+    extras["block_len"] = blocks_len
+    final_ci = {a: uncertainty.rms_interval(final_resid[a], blocks_len[a]) for a in range(3)}
 
     # 6. Per-effect records and the waterfall (training held-out segments choose; the
     #    withheld figures are reported, never used to choose).
@@ -239,17 +324,41 @@ def diagnose(train, withheld=None, model=None):
     gaps = design_gaps(prob, verdict, g.untried)
     seen = {frozenset(c["effects"]) for c in confused}
     not_ident = confused + [c for c in gaps if frozenset(c["effects"]) not in seen]
+    # Effects a wandering bias explains about as well (stage B or the backward check).
+    wander = {}
+    for w in g.wander:
+        if any(n == w["effect"] for n, _ in g.state[w["axis"]]):
+            continue
+        kind = "random_walk" if "random walk" in w["kind"] or w["kind"] == "white" else "bias_instability"
+        key = (w["effect"], kind)
+        e = wander.setdefault(key, {"effects": [w["effect"], kind], "axes": [],
+                                    "needs": wander_needs(w["effect"]), "z": []})
+        if AXES[w["axis"]] not in e["axes"]:
+            e["axes"].append(AXES[w["axis"]])
+            e["z"].append(round(float(w["z"]), 2))
+    not_ident += list(wander.values())
     where = localise(prob.train, base_t, sigma_t, ctx)
     result = {
         "verdict": verdict,
         "effects": effects,
         "where": where,
         "final": {"withheld_rms": _per_axis(final),
-                  "unexplained_rms": {AXES[a]: float(np.sqrt(max(0.0, final[a] ** 2 - sigma[a] ** 2)))
+                  "unexplained_rms": {AXES[a]: float(np.sqrt(max(0.0, final[a] ** 2 - floor[a] ** 2)))
                                       for a in range(3)},
-                  "ratio_to_noise": ratio},
+                  "ratio_to_noise": ratio,
+                  "ratio_to_white_floor": ratio_white,
+                  "model_floor": _per_axis(floor),
+                  "withheld_rms_interval": {AXES[a]: final_ci[a] for a in range(3)},
+                  "ratio_to_noise_interval": {
+                      AXES[a]: [v / floor[a] if v is not None and floor[a] > 0 else None
+                                for v in final_ci[a]] for a in range(3)},
+                  "interval": "90 %, stationary block bootstrap of the scored rows (block length "
+                              "from the noise model)",
+                  "block_length": {AXES[a]: blocks_len[a] for a in range(3)}},
         "sim_only": {"withheld_rms": _per_axis(sim_only)},
         "noise_floor": _per_axis(sigma),
+        "model_floor": _per_axis(floor),
+        "noise_model": noise_json,
         "noise_floor_train": _per_axis(sigma_t),
         "output_step": _per_axis(np.maximum(q_t, q_w)),
         "noise": noise_kind,
@@ -287,6 +396,7 @@ def _effect_records(prob, g, verdict, use_withheld, extras):
     rank = {n: i for i, n in enumerate(verdict)}
     state = {a: list(g.state[a]) for a in range(3)}
     rows = extras.get("withheld_rows")
+    scored = extras.get("scored")
     for name in CATALOGUE:
         if name == "turn_on_bias" and extras.get("tob_shift"):
             corr = extras["tob_corr"]
@@ -313,6 +423,7 @@ def _effect_records(prob, g, verdict, use_withheld, extras):
         hb = {a: rec[a]["rms_before"] for a in rec}
         ha = {a: rec[a]["rms_after"] for a in rec}
         before, after, scored_on = hb, ha, "heldout"
+        rb, ra = {}, {}
         if use_withheld and added:
             before, after = {}, {}
             for a in rec:
@@ -322,15 +433,30 @@ def _effect_records(prob, g, verdict, use_withheld, extras):
                     with_ = blocks
                 else:
                     without, with_ = blocks, blocks + [(name, rec[a]["shape"])]
-                before[a] = _rms(prob.full_residual(prob.withheld, a, without)[rows])
-                after[a] = _rms(prob.full_residual(prob.withheld, a, with_)[rows])
+                rb[a] = scored(a, prob.full_residual(prob.withheld, a, without))
+                ra[a] = scored(a, prob.full_residual(prob.withheld, a, with_))
+                before[a], after[a] = _rms(rb[a]), _rms(ra[a])
             scored_on = "withheld"
         b2 = sum(before[a] ** 2 for a in axes)
         a2 = sum(after[a] ** 2 for a in axes)
         hb2 = sum(hb[a] ** 2 for a in axes)
         ha2 = sum(ha[a] ** 2 for a in axes)
+        ci = [None, None]
+        if name in rank:
+            if ra:
+                bl = [a for a in axes if a in ra]
+                bm = np.column_stack([rb[a] for a in bl])
+                am = np.column_stack([ra[a] for a in bl])
+            else:
+                bl = [a for a in axes if "cv_before" in rec[a]]
+                bm = np.column_stack([rec[a]["cv_before"] for a in bl]) if bl else None
+                am = np.column_stack([rec[a]["res"]["cv"] for a in bl]) if bl else None
+            if bl:
+                L = max(extras["block_len"][a] for a in bl)
+                ci = uncertainty.shrink_interval(bm, am, L)
         out.append({
             "name": name, "axes": [AXES[a] for a in axes],
+            "shrink_interval": ci,
             "withheld_rms_before": _per_axis(before, rec),
             "withheld_rms_after": _per_axis(after, rec),
             "shrink": float(1 - np.sqrt(a2 / b2)) if b2 > 0 else 0.0,
@@ -358,7 +484,7 @@ def _waterfall(prob, g, order, sim_only, extras, tob_shift):
                 continue
             blocks = [(n, s) for n, s in g.state[a] if n in order[:k + 1]]
             if rows is not None:
-                vals[AXES[a]] = _rms(prob.full_residual(prob.withheld, a, blocks)[rows])
+                vals[AXES[a]] = _rms(extras["scored"](a, prob.full_residual(prob.withheld, a, blocks)))
             else:
                 vals[AXES[a]] = _rms(prob.evaluate(a, blocks, withheld=False)["cv"])
         wf.append({"added": name, "withheld_rms": vals})

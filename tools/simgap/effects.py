@@ -239,30 +239,30 @@ class Supply(Effect):
 
 class Drift(Effect):
     """Settling after power-on or aging: a single exponential, exponential plus a linear
-    trend, or a hyperbolic settling, each with a time constant from a grid."""
+    trend, a hyperbolic settling (time constants from a grid), or a straight line in the time
+    since power-on (aging). With one power-on a slow trend is also what a bias random walk
+    looks like; the noise model's likelihood, not the shape grid, decides between them."""
     name = "drift"
 
     def shapes(self, ctx):
-        if ctx.runs < 2:
-            # One power-on: a slow trend over the whole log is what a bias random walk looks
-            # like too, so only a settling that is over within the first quarter of the run
-            # is a candidate (a second power-on is what tells aging from a wander).
-            taus = np.geomspace(ctx.run_span / 100, ctx.run_span / 12, 5)
-            return [(f, float(tau)) for tau in taus for f in ("exp", "hyperbolic")]
         taus = np.geomspace(ctx.run_span / 100, ctx.run_span / 1.5, 6)
-        return [(f, float(tau)) for tau in taus for f in ("exp", "exp+linear", "hyperbolic")]
+        return [("linear", 0.0)] + [(f, float(tau)) for tau in taus
+                                    for f in ("exp", "exp+linear", "hyperbolic")]
 
     def columns(self, ctx, p, shape, axis):
         f, tau = shape
         key = ("drift", f, tau)
         if key not in p.cache:
-            x = p.ton / tau
-            if f == "exp":
-                c = np.exp(-x)[:, None]
-            elif f == "exp+linear":
-                c = np.column_stack([np.exp(-x), p.ton])
+            if f == "linear":
+                c = p.ton[:, None].astype(float)
             else:
-                c = (1.0 / (1.0 + x))[:, None]
+                x = p.ton / tau
+                if f == "exp":
+                    c = np.exp(-x)[:, None]
+                elif f == "exp+linear":
+                    c = np.column_stack([np.exp(-x), p.ton])
+                else:
+                    c = (1.0 / (1.0 + x))[:, None]
             p.cache[key] = c
         return p.cache[key]
 

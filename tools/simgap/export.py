@@ -79,6 +79,8 @@ def _effect(b, e, i, ax, notes):
         for fi, k in ((d1, "ref_D1"), (d2, "ref_D2")):
             if c.get(k):
                 b.gain_terms[i].append([fi, float(c[k]) / s0])
+    elif name == "drift" and e["form"] == "linear":
+        b.offset_terms[i].append([b.feat("uptime"), float(e["coef"]["slope_per_s"])])
     elif name == "drift":
         tau = float(e["tau_s"])
         c = e["coef"]

@@ -1,14 +1,26 @@
-"""One least-squares fit of the sim plus a set of effect shapes on the training log, and its
-residuals on held-out data: the training log's held-out segments (each predicted by a fit on
-the other segments) and, when given, the withheld log (predicted by the fit on all of it)."""
+"""One generalised least-squares fit of the sim plus a set of effect shapes on the training log
+under the axis's noise model, and its residuals on held-out data: the training log's held-out
+segments (one-step-ahead innovations, each segment predicted by a fit on the others) and, when
+given, the withheld log (predicted by the fit on all of it).
+
+Under white noise the fit is ordinary least squares. Under a wandering bias (random walk,
+Gauss-Markov) every column is passed through the noise model's whitening filter (the
+steady-state Kalman innovations, noise.whiten) and the fit is least squares on the filtered
+columns, which is exact GLS, O(n k). The filter runs through the held-out segment (the
+innovations there are one-step-ahead predictions from everything before), and the rows just
+after it, whose filtered values still carry its data, are left out of that segment's fit."""
 import numpy as np
 
+from . import noise as N
 from . import prep
 from .effects import BY_NAME
 from .features import Context, Prepared
 from .model import base_columns
 
 RCOND = 1e-10
+RCOND_WALK = 1e-9   # under a non-white noise model: a ridge of 1e-9 x the mean information
+                    # per column keeps a direction the filtered rows never see at 0 (a stronger
+                    # ridge, 1e-5, blurred the thermal lag's nearly collinear columns)
 
 
 class Problem:
@@ -29,6 +41,7 @@ class Problem:
         self.runs_t = train.run if train.run is not None else np.zeros(len(train), int)
         self.fold_m = self.fold[m]
         self.runs_m = self.runs_t[m]
+        self._run_starts_m = np.flatnonzero(np.r_[False, np.diff(self.runs_m) != 0])
         self._idx = [np.flatnonzero(self.fold_m == f) for f in range(self.nfold)]
         # A held-out segment scores only where the other segments have been: rows at a
         # temperature (or input) only that segment reaches would judge extrapolation, and a
@@ -51,6 +64,37 @@ class Problem:
             keep[:] = True      # nothing inside: a plateau log; segments judge as they are
         self.cv_keep = keep
         self.cv_fold = self.fold_m[keep]
+        # Noise model per axis (white until the selection estimates one) and the filtered
+        # designs it implies, cached for the current state's blocks.
+        self.noise = {a: N.NoiseModel(1.0, dt=self.ctx.dt) for a in range(3)}
+        self._seg_t = self._segment_starts(self.train)
+        self._seg_w = self._segment_starts(self.withheld) if self.withheld is not None else None
+        self._wcache = {}
+
+    def _segment_starts(self, p):
+        """Start rows (in masked-row order) of the log's contiguous stretches."""
+        m = p.mask
+        seg = prep.segments(p.log)
+        pos = np.cumsum(m) - 1              # masked index of each row
+        out = []
+        for s in seg:
+            k = s
+            while k < len(m) and not m[k]:
+                k += 1
+            if k < len(m):
+                out.append(int(pos[k]))
+        return np.unique(np.array(out or [0], int))
+
+    def set_noise(self, axis, model):
+        self.noise[axis] = model
+        self._wcache = {k: v for k, v in self._wcache.items() if k[0] != axis}
+
+    def starts(self, p, axis, model=None):
+        """Filter restarts (masked-row indices) on prepared log p under the axis's noise model."""
+        model = model or self.noise[axis]
+        seg = self._seg_t if p is self.train else self._seg_w
+        t = p.log.t[p.mask]
+        return N.restarts(t, self.ctx.dt, seg, model)
 
     def _target(self, p):
         if self.model is None:
@@ -67,58 +111,166 @@ class Problem:
             return np.zeros((len(p), 0))
         return np.column_stack(cols)
 
-    def evaluate(self, axis, blocks, withheld=True):
-        """Residuals of sim + blocks for one axis: 'cv' on the training log's masked rows in
-        held-out order, 'w' on the withheld log's masked rows (None without one)."""
-        per_run = any(BY_NAME[n].per_run for n, _ in blocks)
+    def _train_design(self, axis, blocks, model):
+        """(X raw on masked training rows with per-run and level columns, scale, Xs filtered
+        and scaled, number of level columns). Level columns (one per filter restart after
+        the first) give a walking bias a free level where the filter restarts; the base
+        intercept is the first segment's."""
         m = self.train.mask
-        X = self._design(self.train, axis, blocks)[m]
-        y = self.y_t[m, axis]
-        if per_run:
-            runs = np.unique(self.runs_m)
-            X = np.column_stack([X, (self.runs_m[:, None] == runs[None, :]).astype(float)])
-        scale = np.sqrt(np.mean(X * X, axis=0)) if X.shape[1] else np.zeros(0)
+        per_run = any(BY_NAME[n].per_run for n, _ in blocks)
+        key = (axis, model.key(), tuple((n, _shape_key(s)) for n, s in blocks))
+        if key in self._wcache:
+            return self._wcache[key]
+        st = self.starts(self.train, axis, model)
+        pkey = (axis, model.key(), key[2][:-1], "prefix")
+        last = blocks[-1] if blocks else None
+        plain = not model.is_white and not per_run and len(st) == 1
+        if blocks and plain and pkey in self._wcache:
+            # The state's filtered columns are cached; only the candidate's are filtered.
+            X0, Xw0 = self._wcache[pkey]
+            Xn = BY_NAME[last[0]].columns(self.ctx, self.train, last[1], axis)[m]
+            X = np.column_stack([X0, Xn])
+            Xw = np.column_stack([Xw0, N.whiten(Xn, model, st)])
+            nlev = 0
+        else:
+            X = self._design(self.train, axis, blocks)[m]
+            if per_run:
+                runs = np.unique(self.runs_m)
+                X = np.column_stack([X, (self.runs_m[:, None] == runs[None, :]).astype(float)])
+            nlev = 0
+            if model.walks and len(st) > 1:
+                L = N.level_columns(len(X), st, model)[:, 1:]
+                X = np.column_stack([X, L])
+                nlev = L.shape[1]
+            Xw = N.whiten(X, model, st) if X.shape[1] else X
+        # Each column scaled by its RMS after the filter: under a walking bias a slow column
+        # (a spline in temperature) keeps only its small differences, and the solve's rank
+        # cut must judge it at that size, not against its raw size.
+        scale = np.sqrt(np.mean(Xw * Xw, axis=0)) if X.shape[1] else np.zeros(0)
         scale[scale == 0] = 1.0
-        Xs = X / scale
+        Xs = Xw / scale
+        while len(self._wcache) > 4:
+            self._wcache.pop(next(iter(self._wcache)))
+        out = (X, scale, Xs, nlev, st)
+        if X.shape[1] <= 40:
+            self._wcache[key] = out
+            if plain:
+                self._wcache[(axis, model.key(), key[2], "prefix")] = (X, Xw)
+        return out
+
+    def prime(self, axis, blocks):
+        """Filter the state's design once, so each candidate filters only its own columns."""
+        self._train_design(axis, blocks, self.noise[axis])
+
+    def _yw(self, axis, model, st):
+        key = (axis, model.key(), "y")
+        if key not in self._wcache:
+            self._wcache[key] = N.whiten(self.y_t[self.train.mask, axis], model, st)
+        return self._wcache[key]
+
+    def evaluate(self, axis, blocks, withheld=True, model=None):
+        """Residuals of sim + blocks for one axis under the axis's noise model (or `model`):
+        'cv' the one-step-ahead innovations of the training log's held-out segments (masked
+        rows in held-out order; plain residuals under white noise), 'w' the withheld log's
+        residuals (None without one), 's2' the innovation variance the noise model implies."""
+        model = model or self.noise[axis]
+        per_run = any(BY_NAME[n].per_run for n, _ in blocks)
+        X, scale, Xs, nlev, st0 = self._train_design(axis, blocks, model)
+        y = self._yw(axis, model, st0)
+        yr = self.y_t[self.train.mask, axis]
         Gf = [Xs[i].T @ Xs[i] for i in self._idx]
         bf = [Xs[i].T @ y[i] for i in self._idx]
         G, b = sum(Gf), sum(bf)
         r_cv = np.empty_like(y)
+        B = 0 if model.is_white else model.memory()
         for f, i in enumerate(self._idx):
-            beta = _solve(G - Gf[f], b - bf[f])
-            r_cv[i] = y[i] - Xs[i] @ beta
+            Gk, bk = G - Gf[f], b - bf[f]
+            if B and i.size:
+                # Rows just after the held-out segment carry its data through the filter.
+                j = np.arange(i[-1] + 1, min(len(y), i[-1] + 1 + min(B, max(1, i.size // 2))))
+                j = j[self.fold_m[j] != f]
+                if j.size:
+                    Gk = Gk - Xs[j].T @ Xs[j]
+                    bk = bk - Xs[j].T @ y[j]
+            beta = _solve(Gk, bk, RCOND if model.is_white else RCOND_WALK)
+            if not model.is_white:
+                # One-step-ahead from everything before the held-out segment: the filter
+                # carries the bias's state in. Where a walking bias's filter segment starts
+                # inside it, or a power-on does (its constant captured at start-up, as for a
+                # withheld log), the level is unknown (diffuse): the first observation sets it
+                # and its innovation carries no information (0). Rows it does not score
+                # (beyond what the other segments cover) do not feed the filter: it restarts
+                # at the first scored row after them.
+                # Only the rows that reach the segment through the filter's memory matter.
+                w0 = int(i[0])
+                lo = max(0, w0 - B)
+                prev = st0[st0 <= w0]
+                if prev.size:
+                    lo = max(lo, int(prev[-1]))
+                hi = int(i[-1]) + 1
+                z = np.zeros(len(yr))
+                z[lo:hi] = yr[lo:hi] - (X[lo:hi] / scale) @ beta
+                rst = np.union1d(st0, [lo])
+                diffuse = st0[self.fold_m[st0] == f] if model.walks else np.zeros(0, int)
+                if per_run:
+                    rs = self._run_starts_m[self.fold_m[self._run_starts_m] == f]
+                    diffuse = np.union1d(diffuse, rs)
+                out_i = i[~self.cv_keep[i]]
+                if out_i.size:
+                    z[out_i] = 0.0
+                    after = out_i + 1
+                    after = after[after < len(z)]
+                    after = after[(self.fold_m[after] == f) & self.cv_keep[after]]
+                    rst = np.union1d(rst, after)
+                    if model.walks:
+                        diffuse = np.union1d(diffuse, after)
+                rst = np.union1d(rst, diffuse).astype(int)
+                for s0 in diffuse:
+                    nxt = rst[rst > s0]
+                    z[s0:(nxt[0] if nxt.size else len(z))] -= z[s0]
+                rw = rst[(rst >= lo) & (rst < hi)] - lo
+                u = N.whiten(z[lo:hi], model, rw)
+                u[diffuse.astype(int) - lo] = 0.0
+                r_cv[i] = u[i - lo]
+            else:
+                r_cv[i] = y[i] - Xs[i] @ beta
             if per_run:
                 # A run wholly inside the held-out block has no fitted constant: capture it
                 # from the block's first samples of that run, as for a withheld log.
                 seen = np.isin(self.runs_m[i], self.runs_m[self.fold_m != f])
                 r_cv[i] = _startup_correct(r_cv[i], self.runs_m[i], ~seen)
-        out = {"cv": r_cv[self.cv_keep], "w": None}
+        beta = _solve(G, b, RCOND if model.is_white else RCOND_WALK)
+        out = {"cv": r_cv[self.cv_keep], "w": None, "s2": model.filter()[2],
+               "ins": y - Xs @ beta if X.shape[1] else y}
         if withheld and self.withheld is not None:
             pw = self.withheld
-            beta = _solve(G, b)
+            k = X.shape[1] - nlev
             Xw = self._design(pw, axis, blocks)[pw.mask]
             if per_run:
                 Xw = np.column_stack([Xw, np.zeros((Xw.shape[0], len(np.unique(self.runs_m))))])
-            rw = self.y_w[pw.mask, axis] - (Xw / scale) @ beta if Xw.shape[1] else self.y_w[pw.mask, axis].copy()
+            rw = self.y_w[pw.mask, axis] - (Xw / scale[:k]) @ beta[:k] if Xw.shape[1] \
+                else self.y_w[pw.mask, axis].copy()
             if per_run:
                 wr = pw.log.run[pw.mask] if pw.log.run is not None else np.zeros(len(rw), int)
                 rw = _startup_correct(rw, wr, np.ones(len(rw), bool))
             out["w"] = rw
         return out
 
-    def full_residual(self, p, axis, blocks):
-        """Residual on every row of prepared log p (training fit on all masked rows) - for
-        the localisation and the plots, not for scoring."""
-        m = self.train.mask
-        X = self._design(self.train, axis, blocks)[m]
-        y = self.y_t[m, axis]
+    def _beta(self, axis, blocks, model=None):
+        model = model or self.noise[axis]
+        X, scale, Xs, nlev, st = self._train_design(axis, blocks, model)
+        y = self._yw(axis, model, st)
+        beta = _solve(Xs.T @ Xs, Xs.T @ y, RCOND if model.is_white else RCOND_WALK) \
+            if X.shape[1] else np.zeros(0)
+        return beta, scale, nlev, X
+
+    def full_residual(self, p, axis, blocks, model=None):
+        """Residual on every row of prepared log p (the fit on all masked training rows under
+        the axis's noise model) - for the localisation, the noise model and the plots."""
+        beta, scale, nlev, X = self._beta(axis, blocks, model)
+        k = len(beta) - nlev
         per_run = any(BY_NAME[n].per_run for n, _ in blocks)
         runs = np.unique(self.runs_m)
-        if per_run:
-            X = np.column_stack([X, (self.runs_m[:, None] == runs[None, :]).astype(float)])
-        scale = np.sqrt(np.mean(X * X, axis=0)) if X.shape[1] else np.zeros(0)
-        scale[scale == 0] = 1.0
-        beta = _solve((X / scale).T @ (X / scale), (X / scale).T @ y) if X.shape[1] else np.zeros(0)
         Xp = self._design(p, axis, blocks)
         if per_run:
             if p is self.train:
@@ -126,27 +278,23 @@ class Problem:
             else:
                 Xp = np.column_stack([Xp, np.zeros((len(p), len(runs)))])
         yp = self._target(p)[:, axis]
-        r = yp - (Xp / scale) @ beta if Xp.shape[1] else yp.copy()
+        r = yp - (Xp / scale[:k]) @ beta[:k] if Xp.shape[1] else yp.copy()
+        if nlev and p is self.train:
+            lev = np.zeros(len(p))
+            lev[self.train.mask] = (X[:, k:] / scale[k:]) @ beta[k:]
+            r = r - lev
         if per_run and p is not self.train:
             rr = p.log.run if p.log.run is not None else np.zeros(len(p), int)
             r = _startup_correct(r, rr, np.ones(len(r), bool))
         return r
 
-
     def coefficients(self, axis, blocks):
         """The fit on every masked training row in physical units: (base or None when the sim
         is given, [(effect, shape, coefficients)], per-run constants {run: c} or None)."""
-        m = self.train.mask
-        X = self._design(self.train, axis, blocks)[m]
-        y = self.y_t[m, axis]
+        beta, scale, nlev, X = self._beta(axis, blocks)
+        beta = beta[:len(beta) - nlev] / scale[:len(beta) - nlev]
         per_run = any(BY_NAME[n].per_run for n, _ in blocks)
         runs = np.unique(self.runs_m)
-        if per_run:
-            X = np.column_stack([X, (self.runs_m[:, None] == runs[None, :]).astype(float)])
-        scale = np.sqrt(np.mean(X * X, axis=0)) if X.shape[1] else np.zeros(0)
-        scale[scale == 0] = 1.0
-        Xs = X / scale
-        beta = _solve(Xs.T @ Xs, Xs.T @ y) / scale if X.shape[1] else np.zeros(0)
         k = 0
         base = None
         if self.model is None:
@@ -166,9 +314,21 @@ class Problem:
         return base, parts, tob
 
 
-def _solve(G, b):
+def _shape_key(s):
+    if isinstance(s, tuple):
+        return tuple(_shape_key(x) for x in s)
+    if isinstance(s, (float, np.floating)):
+        return float(s)
+    return s
+
+
+def _solve(G, b, rcond=RCOND):
     if G.shape[0] == 0:
         return np.zeros(0)
+    if rcond > RCOND:
+        # Walking bias: a ridge of rcond x the mean information per column, so a direction
+        # the filtered training rows barely see is shrunk to 0 instead of fitted huge.
+        G = G + rcond * np.trace(G) / G.shape[0] * np.eye(G.shape[0])
     return np.linalg.lstsq(G, b, rcond=RCOND)[0]
 
 

@@ -1,7 +1,9 @@
 """Physical plausibility of a fitted effect: its size against the range datasheets and
-application notes give for the sensor kind (docs/simgap.md, "Plausible sizes"). A fit far
-outside it is a fitting artefact (a column that happens to follow something else in the log),
-so it is reported and kept out of the verdict.
+application notes give for the sensor kind (docs/simgap.md, "Plausible sizes"). A fit outside
+it is reported (`implausible_coefficient`). Only a bound on one coefficient that a datasheet
+states (VETO) keeps the effect out of the verdict; a rule of thumb only warns, and no bound is
+a ratio to another fitted coefficient (a lag's weight follows thermal gradients across the
+package and die, which the static slope does not limit).
 
 Sizes are in the input's units (dps for a gyro, g for an accelerometer): the effect's
 contribution divided by the axis sensitivity when the log identifies it, else converted from a
@@ -12,7 +14,9 @@ import numpy as np
 #   "p2p": peak-to-peak contribution (0.5 .. 99.5 percentile) in input units
 #   "per_g": largest coefficient per g, in input units per g
 #   "relative": largest contribution over (sensitivity x |input|), i.e. a fraction of the reading
-#   "slope": largest weight on the filtered derivative over the offset's temperature slope
+# VETO: effects whose limit is a datasheet bound on that coefficient alone (cited in
+# docs/simgap.md); the others warn only.
+VETO = {"g_sensitivity"}
 TABLE = {
     "gyro": {
         "g_sensitivity": ("per_g", 3.0, "linear-acceleration sensitivity per axis of g: 0.01-0.1 "
@@ -20,8 +24,7 @@ TABLE = {
                           "limit 3 dps/g, 10x the worst datasheet"),
         "offset_temperature": ("p2p", 10.0, "zero-rate change beyond the quadratic: a few dps"),
         "hysteresis": ("p2p", 10.0, "thermal hysteresis of the zero rate: < 1 dps typical"),
-        "temp_rate": ("slope", 3.0, "a lag delays the offset law: the weight on T - lowpass(T) "
-                      "is at most the offset's slope (limit 3x)"),
+        "temp_rate": ("p2p", 10.0, "zero-rate change while the temperature moves: a few dps"),
         "drift": ("p2p", 10.0, "turn-on settling and aging: < a few dps"),
         "supply": ("p2p", 10.0, "supply sensitivity: < 1 dps/V typical over the supply range"),
         "temp_quantization": ("p2p", 10.0, "error of a coarse temperature reading: slope x step"),
@@ -34,8 +37,7 @@ TABLE = {
     "accel": {
         "offset_temperature": ("p2p", 0.15, "zero-g change beyond the quadratic: tens of mg"),
         "hysteresis": ("p2p", 0.15, "thermal hysteresis of zero-g: a few mg"),
-        "temp_rate": ("slope", 3.0, "a lag delays the offset law: the weight on T - lowpass(T) "
-                      "is at most the offset's slope (limit 3x)"),
+        "temp_rate": ("p2p", 0.15, "zero-g change while the temperature moves: tens of mg"),
         "drift": ("p2p", 0.15, "turn-on settling: a few mg"),
         "supply": ("p2p", 0.15, "supply sensitivity: a few mg/V"),
         "temp_quantization": ("p2p", 0.15, "error of a coarse temperature reading: slope x step"),
@@ -60,12 +62,12 @@ def to_input(prob, base, axis):
 
 
 def check(prob, axis, blocks):
-    """[(effect, size, limit, unit text, basis)] for every block of this axis that is
-    outside the table (empty when all are plausible or cannot be checked)."""
+    """[(effect, size, limit, unit text, basis, veto)] for every block of this axis that is
+    outside the table (empty when all are plausible or cannot be checked); veto is True only
+    for a datasheet bound (VETO)."""
     kind = prob.ctx.sensor if prob.ctx.sensor in TABLE else "gyro"
     base, parts, _ = prob.coefficients(axis, blocks)
     k = to_input(prob, base, axis)
-    keep = prob.ctx.base[axis][0] if prob.model is None else [True] * 5
     if k is None:
         k = float("nan")     # sizes in input units cannot be checked; ratios still can
     iu = prob.train.log.meta.get("ref_unit", "dps" if kind == "gyro" else "g")
@@ -90,19 +92,6 @@ def check(prob, axis, blocks):
         elif measure == "p2p":
             size = float(np.percentile(c, 99.5) - np.percentile(c, 0.5)) * k
             unit = iu
-        elif name == "temp_rate" and measure == "slope":
-            # A thermal lag evaluates the sim at a lagging temperature: the error is the
-            # offset's temperature slope times the lag, so the weight on D = T - lowpass(T)
-            # (in out units per degC) cannot exceed that slope by much. A fit needing a weight
-            # many times the slope is following something else that moved with the ramps.
-            if base is None or not keep[1]:
-                continue
-            coef = dict(zip(("D1", "D1_dT", "D2", "D2_dT"), next(cf for n, _, cf in parts if n == name)))
-            dT = prob.train.log.temp[m] - prob.ctx.t0
-            w = np.abs(coef["D1"] + coef["D2"] + (coef["D1_dT"] + coef["D2_dT"]) * dT)
-            slope = np.abs(base[1] + 2 * base[2] * dT)
-            size = float(np.max(w) / max(float(np.max(slope)), 1e-300))
-            unit = "x the offset's temperature slope"
         elif name == "cross_axis":
             # The other axes' inputs are not collinear with the base columns, so the fitted
             # coefficients themselves are the cross-axis sensitivities (x dT within the span).
@@ -129,7 +118,7 @@ def check(prob, axis, blocks):
                 size = float(np.percentile(np.abs(cc[big]) * k / r[big], 99.5))
                 unit = "of the reading"
         if size > limit:     # (False for NaN: an unknown unit is not a finding)
-            bad.append((name, size, limit, unit, basis))
+            bad.append((name, size, limit, unit, basis, name in VETO))
     return bad
 
 

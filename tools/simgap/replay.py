@@ -117,7 +117,7 @@ def main():
         phase(loop, aug, ap, buf, res, k, n, raw, out, acc)
     print('RESTARTS', restarts, len(STARTS))
     print('ALLOC', a1 - a0, k - w)
-    print('CLAMPED', aug.clamped, aug.comp.clamped)
+    print('CLAMPED', aug.clamped(), aug.comp.clamped)
     mv = memoryview(res)
     j = 0
     while j < n * 3:

@@ -23,7 +23,22 @@ def text(res):
              + (f", withheld {rows['withheld']} ({rows['withheld_outliers']} outliers dropped)"
                 if rows["withheld"] else ""))
     nf = res["noise_floor"]
-    L.append("noise floor: " + ", ".join(f"{a} {nf[a]:.4g}" for a in nf) + f" {u}")
+    L.append("white noise floor: " + ", ".join(f"{a} {nf[a]:.4g}" for a in nf) + f" {u}")
+    mf = res.get("model_floor", nf)
+    L.append("noise model's floor (white + what the wandering bias adds there): "
+             + ", ".join(f"{a} {mf[a]:.4g}" for a in mf) + f" {u}")
+    for a, nm in res.get("noise_model", {}).items():
+        parts = [f"white {nm['white']['sigma']:.4g} {u}"]
+        if nm.get("random_walk"):
+            rw = nm["random_walk"]
+            parts.append(f"random walk K {rw['K']:.3g} {rw['unit']}"
+                         + (f" (dominates from {rw['read_at']:.3g} {nm['averaging_time_unit']})"
+                            if rw.get("read_at") else ""))
+        if nm.get("bias_instability"):
+            bi = nm["bias_instability"]
+            parts.append(f"bias instability {bi['sigma']:.3g} {u}, Tc {bi['tau_c']:.3g} "
+                         f"{nm['averaging_time_unit']}")
+        L.append(f"noise model {a}: " + ", ".join(parts))
     so = res["sim_only"]["withheld_rms"]
     L.append("scored RMS, sim only: " + ", ".join(f"{a} {so[a]:.4g}" for a in so) + f" {u}")
     ratio = res["final"]["ratio_to_noise"]
@@ -44,12 +59,25 @@ def text(res):
         pa = "; ".join(f"{a} {e['withheld_rms_before'][a]:.4g}->{e['withheld_rms_after'][a]:.4g}"
                        for a in shown if a in e["withheld_rms_before"])
         on = e.get("scored_on", "withheld")
-        L.append(f" {mark} {e['name']:<24} shrink {100 * e['shrink']:6.1f}% on {ax:<6} ({pa}) [{on}]")
+        ci = e.get("shrink_interval") or [None, None]
+        cis = (f" [90 % {100 * ci[0]:.1f}..{100 * ci[1]:.1f}%]" if ci[0] is not None else "")
+        L.append(f" {mark} {e['name']:<24} shrink {100 * e['shrink']:6.1f}%{cis} on {ax:<6} ({pa}) [{on}]")
     fin = res["final"]
+    iv = fin.get("withheld_rms_interval", {})
+
+    def _iv(a):
+        c = iv.get(a) or [None, None]
+        return f" [90 % {c[0]:.4g}..{c[1]:.4g}]" if c[0] is not None else ""
+
     L.append("final scored RMS: " + ", ".join(
-        f"{a} {fin['withheld_rms'][a]:.4g} ({_fmt_ratio(fin['ratio_to_noise'][a])} floor)"
+        f"{a} {fin['withheld_rms'][a]:.4g}{_iv(a)} ({_fmt_ratio(fin['ratio_to_noise'][a])} the model "
+        f"floor, {_fmt_ratio(fin.get('ratio_to_white_floor', {}).get(a))} the white floor)"
         for a in fin["withheld_rms"]) + f" {u}")
     for c in res.get("not_confirmed", []):
+        if c.get("reason"):
+            L.append(f"not confirmed: {c['effect']} on {c['axis']} ({c['withheld_rms_without']:.4g} -> "
+                     f"{c['withheld_rms_with']:.4g} {u} withheld): {c['reason']}; left out")
+            continue
         L.append(f"not confirmed: {c['effect']} on {c['axis']} was chosen on the training log but makes "
                  f"the withheld log worse ({c['withheld_rms_without']:.4g} -> {c['withheld_rms_with']:.4g} "
                  f"{u}); left out")
@@ -106,8 +134,8 @@ def plot(res, extras, path):
         base_w = extras["base_withheld"]
         final_w = np.column_stack([extras["score_withheld"][a] - _corr_full(extras, a, len(wl))
                                    for a in range(3)])
-    fig = plt.figure(figsize=(17, 13), layout="constrained")
-    gs = fig.add_gridspec(3, 3)
+    fig = plt.figure(figsize=(17, 17), layout="constrained")
+    gs = fig.add_gridspec(4, 3)
     drawn = {"titles": [], "axis_colours": dict(AXIS_COLOURS), "withheld_drawn": have_w}
     # Row 1: residual vs temperature, one panel per axis, both logs.
     for a in range(3):
@@ -179,7 +207,7 @@ def plot(res, extras, path):
         c = AXIS_COLOURS[AXES[a]]
         ax.plot(range(len(wf)), [w["withheld_rms"][AXES[a]] for w in wf], "o-", color=c,
                 label=AXES[a])
-        ax.axhline(res["noise_floor"][AXES[a]], ls=":", color=c)
+        ax.axhline(res.get("model_floor", res["noise_floor"])[AXES[a]], ls=":", color=c)
     ax.set_xticks(range(len(wf)), labels, rotation=20, ha="right", fontsize=8)
     ax.set_ylabel(f"scored RMS ({u})")
     ax.set_yscale("log")
@@ -198,6 +226,60 @@ def plot(res, extras, path):
     t = "summary"
     ax.set_title(t)
     drawn["titles"].append(t)
+    # Row 4: the Allan deviation of each axis's final training residual with its 90 %
+    # intervals, the fitted noise model and its terms; the verdict's shrinks with intervals.
+    ax = fig.add_subplot(gs[3, 0:2])
+    drawn["allan_axes"] = []
+    for a in range(3):
+        info = g.noise_info.get(a, {}).get("final")
+        if not info or not info["allan"]["m"].size:
+            continue
+        ad, nm = info["allan"], info["model"]
+        c = AXIS_COLOURS[AXES[a]]
+        yerr = [ad["adev"] - ad["lo"], ad["hi"] - ad["adev"]]
+        ax.errorbar(ad["tau"], ad["adev"], yerr=yerr, fmt="o", ms=3, color=c, capsize=2,
+                    label=f"{AXES[a]}: Allan deviation (90 % CI)")
+        mm = np.geomspace(1, ad["m"][-1], 100)
+        from .noise import avar_terms
+        terms = avar_terms(mm, nm.s2, nm.q, nm.g2, nm.phi)
+        ax.plot(mm * nm.dt, np.sqrt(nm.avar(mm)), "-", color=c, lw=1.5,
+                label=f"{AXES[a]}: fitted noise model")
+        for name, ls in (("white", ":"), ("random_walk", "--"), ("bias_instability", "-.")):
+            v = terms[name]
+            if np.any(v > 0):
+                ax.plot(mm * nm.dt, np.sqrt(v), ls, color=c, lw=0.8, alpha=0.7,
+                        label=f"{AXES[a]}: {name.replace('_', ' ')}")
+        drawn["allan_axes"].append(AXES[a])
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    tu = "rows" if "row index" in log.meta.get("time", "") else "s"
+    ax.set_xlabel(f"averaging time ({tu})")
+    ax.set_ylabel(f"Allan deviation ({u})")
+    ax.legend(fontsize=7, ncol=3, loc="best")
+    t = "noise model: Allan deviation of the final training residual and the fitted terms"
+    ax.set_title(t, fontsize=10)
+    drawn["titles"].append(t)
+    ax = fig.add_subplot(gs[3, 2])
+    eff = [e for e in res["effects"] if e["significant"]]
+    if eff:
+        for i, e in enumerate(eff):
+            ci = e.get("shrink_interval") or [None, None]
+            x = 100 * e["shrink"]
+            ax.barh(i, x, color="0.6")
+            if ci[0] is not None:
+                ax.errorbar(x, i, xerr=[[x - 100 * ci[0]], [100 * ci[1] - x]], fmt="none",
+                            color="k", capsize=4)
+        ax.set_yticks(range(len(eff)), [f"{e['name']} ({','.join(e['axes'])})" for e in eff],
+                      fontsize=8)
+        ax.set_xlabel("shrink of the scored RMS (%), 90 % interval")
+    else:
+        ax.text(0.5, 0.5, "no effect in the verdict", ha="center", va="center",
+                transform=ax.transAxes)
+        ax.set_yticks([])
+    t = "shrink per verdict effect (block bootstrap)"
+    ax.set_title(t, fontsize=10)
+    drawn["titles"].append(t)
+    drawn["shrink_bars"] = [e["name"] for e in eff]
     fig.savefig(path, dpi=80, format="png")
     plt.close(fig)
     return drawn
