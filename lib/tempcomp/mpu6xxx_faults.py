@@ -3,9 +3,10 @@
 A message is a string object on the heap for as long as the module that holds it is loaded
 (about 1.3 bytes of heap per character from ``.mpy``). The driver (``tempcomp.mpu6xxx``) and
 ``tempcomp.mpu6xxx_rt`` keep only the numbers of a fault and call the function named for it here,
-so a boot that meets none never holds their text (1.6 KB of heap in the driver, 0.4 KB in
-``mpu6xxx_rt``; docs/ram.md); the store's reader does the same with ``tempcomp.store_check``. Each function returns the exception to raise, or the
-text of a warning (the caller warns, so that the warning names the user's line).
+so a boot that meets none never holds their text (1.6 KB of heap measured in the driver, about
+0.4 KB in ``mpu6xxx_rt``; docs/ram.md); the store's reader does the same with
+``tempcomp.store_check``. Each function returns the exception to raise, or the text of a warning
+(the caller warns, so that the warning names the user's line).
 
 The bottom of the family, beside ``tempcomp.mpu6xxx_parts`` (the part names, ``MPUError``).
 """
