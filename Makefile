@@ -44,9 +44,10 @@ lint: setup
 	$(PY) -m ruff check lib boards tools host_tests
 
 # The main job: virtual board, deploy, scripted calibration session, resets, sweep, plot, gap
-# diagnosis of a real log. PORT=/dev/ttyACM0 BOARD=pico runs it against a real board.
+# diagnosis of a real log. BOARD=pico: the same on the virtual Raspberry Pi Pico (the real RP2040
+# firmware, tools/pico). PORT=/dev/ttyACM0 BOARD=pico runs it against a real board.
 demo: setup
-	PORT="$(PORT)" BOARD="$(if $(PORT),$(BOARD),virtual)" DEMO_TCP=$(if $(filter command line environment,$(origin BOARD_TCP)),$(BOARD_TCP),0) $(PY) -m tools demo
+	PORT="$(PORT)" BOARD="$(if $(PORT),$(BOARD),$(if $(filter pico,$(BOARD)),pico,virtual))" DEMO_TCP=$(if $(filter command line environment,$(origin BOARD_TCP)),$(BOARD_TCP),0) $(PY) -m tools demo
 
 bench: setup
 	$(PY) -m tools bench

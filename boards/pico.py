@@ -1,7 +1,8 @@
 """Raspberry Pi Pico / Pico W (RP2040), MicroPython ``machine``.
 
 Wiring: MPU-6500 on I2C0 (GP4 SDA, GP5 SCL); MLX90609 on SPI0 (GP18 SCK, GP19 MOSI,
-GP16 MISO, GP17 CS); analog gyro rate on GP26/ADC0 and its temperature output on GP27/ADC1.
+GP16 MISO, GP17 CS); analog gyro rate on GP26/ADC0 and its temperature output on GP27/ADC1,
+each through a 1:2 divider (ADC_DIVIDER: change it to match yours).
 """
 
 from machine import ADC, I2C, SPI, Pin
@@ -18,6 +19,8 @@ SPI_MOSI = 19
 SPI_MISO = 16
 MLX_CS = 17
 ADC_PINS = {"rate": 26, "temp": 27}
+ADC_DIVIDER = 2.0  # a 5 V analog gyro reaches the 3.3 V ADC through a 1:2 divider (as on the virtual Pico)
+ADXRS_MV_PER_DPS = 6.0  # the analog gyro's nominal scale factor (ADXRS620: 6 mV per deg/s)
 
 
 def i2c():

@@ -8,7 +8,7 @@ for events, with generous ceilings.
 3. host writes, renames and removals through a link planted in the flash directory;
 4. idle TCP connections holding the only slot;
 5. `--stop` with a pid file naming another project's node server;
-6. the pid file and the --detach log written through symlinks;
+6. the pid file and the --detach log written through symlinks (the VM board's and the virtual Pico's);
 7. board code flooding the host's memory (in-memory files, the VM's heap), checked in /proc;
 8. a 300,000-digit number, a 3 MB line, Ctrl-C and binary bytes at the REPL.
 """
@@ -248,7 +248,14 @@ def test_stop_refuses_a_pid_file_naming_another_node_server(tmp_path):
 
 # 6 ------------------------------------------------------------------------------------------
 
-def test_pid_file_and_log_are_not_written_through_links(tmp_path):
+@pytest.mark.parametrize("board", ["virtual", "pico"])
+def test_pid_file_and_log_are_not_written_through_links(tmp_path, board):
+    if board == "pico":
+        from tools.board import picoctl
+
+        why = picoctl.missing()
+        if why:
+            pytest.skip("virtual Pico cannot run: " + why)
     victim = tmp_path / "victim.txt"
     victim.write_text("precious\n")
     run = tmp_path / "run"
@@ -256,7 +263,8 @@ def test_pid_file_and_log_are_not_written_through_links(tmp_path):
     pidfile, log = run / "board.pid", run / "board.log"
     os.symlink(victim, pidfile)
     os.symlink(tmp_path / "made-by-the-log.txt", log)  # dangling: following it would create it
-    r = subprocess.run([NODE, str(SERVER), "--port", "0", "--no-pty", "--flash", str(tmp_path / "flash"),
+    flash = tmp_path / ("flash.img" if board == "pico" else "flash")
+    r = subprocess.run([NODE, str(SERVER), "--board", board, "--port", "0", "--no-pty", "--flash", str(flash),
                         "--pidfile", str(pidfile), "--detach"], capture_output=True, text=True, timeout=60)
     m = re.search(r"pid (\d+);", r.stdout)
     try:
@@ -266,9 +274,10 @@ def test_pid_file_and_log_are_not_written_through_links(tmp_path):
         assert not pidfile.is_symlink() and json.loads(pidfile.read_text())["pid"] == int(m.group(1))
         assert not log.is_symlink() and "listening on socket://" in log.read_text()
         assert log.stat().st_mode & 0o777 == 0o600
-        r = subprocess.run([NODE, str(SERVER), "--stop", "--pidfile", str(pidfile)],
+        r = subprocess.run([NODE, str(SERVER), "--board", board, "--stop", "--pidfile", str(pidfile)],
                            capture_output=True, text=True, timeout=30)
         assert r.returncode == 0 and "stopped" in r.stdout, r.stdout + r.stderr
+        assert not (run / "world.sock").exists()  # the Pico's world control goes with it
     finally:
         if m:
             try:

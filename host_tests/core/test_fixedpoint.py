@@ -75,6 +75,8 @@ def _bounded(comp):
     bind(comp, ["_gh", "_gl", "_b", "_s", "_half", "_mid", "_eo", "_eg", "_k", "_kmask", "_fq", "_fs", "_wg"])
     if comp.burst3 is not None:
         bind(comp, ["burst3"])
+    if comp._q0 is not None:
+        bind(comp, ["_q0", "_q1", "_q2"])  # the pure 3-axis path's numbers per axis
     for p in comp._sc + comp._off:
         bind(p, ["_a", "_a0", "_a0h", "_a0l", "_vm", "_mid", "_h", "_vs", "_vr"])
     comp._t = None

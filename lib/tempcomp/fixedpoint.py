@@ -645,6 +645,7 @@ class Compensator:
         # the unrolled 3-axis burst path needs signed int16 raw codes (raw range middle 0)
         self.burst3 = None
         self._nk = None
+        self._q0 = self._q1 = self._q2 = None
         if n == 3 and mid == 0:
             nk = _kernels() if _native is not False else None
             if nk is not None:
@@ -654,6 +655,10 @@ class Compensator:
                 self._nk = nk.kernels(self.burst3, self._check_n)
             else:
                 self.burst3 = [0] * 11
+                # _be16_3's numbers per axis (gain limbs, offset term minus half)
+                self._q0 = [0, 0, 0]
+                self._q1 = [0, 0, 0]
+                self._q2 = [0, 0, 0]
         if min(self._fd) >= 0:
             # every scale constant: update() is Horner only
             self._fill_burst3()
@@ -802,6 +807,20 @@ class Compensator:
                 j += 3
             p[9] = self._k
             p[10] = self._s
+            q = self._q0
+            if q is not None:
+                # the same numbers per axis for _be16_3 (no tuple: update() allocates nothing)
+                q[0] = p[0]
+                q[1] = p[1]
+                q[2] = p[2]
+                q = self._q1
+                q[0] = p[3]  # type: ignore[index]  # set with _q0
+                q[1] = p[4]  # type: ignore[index]
+                q[2] = p[5]  # type: ignore[index]
+                q = self._q2
+                q[0] = p[6]  # type: ignore[index]
+                q[1] = p[7]  # type: ignore[index]
+                q[2] = p[8]  # type: ignore[index]
 
     def export(self):
         """(t_lo, t_hi, fxm, fxl, fxs, half, k, s, gh, gl, fd, fs, fq): every number ``update()``
@@ -857,6 +876,11 @@ class Compensator:
                 p[3 * k + 2] = b - half
             k += 1
             j += 4
+        q = self._q0
+        if q is not None:
+            q[2] = bb[0] - half
+            self._q1[2] = bb[1] - half  # type: ignore[index]  # set with _q0
+            self._q2[2] = bb[2] - half  # type: ignore[index]
 
     def apply(self, raw, axis=0):
         """Compensated value of one raw code (inside raw_range) in output units."""
@@ -942,17 +966,23 @@ class Compensator:
             j += stride
 
     def _be16_3(self, buf, out):
-        # The common 3-axis int16 burst, unrolled, with every per-axis number in one flat list
-        # unpacked onto the stack (no allocation) and the rounding half folded into the offset
-        # term: about 1.6x the cost of a bare unpack in the VM, where the loop costs 2.5x.
-        # Bound: |v*g| <= 2**28, |(v*l) >> k| < 2**15, |b - half| <= 2**29 + 2**23: sum < 2**30.
-        g0, l0, b0, g1, l1, b1, g2, l2, b2, k, s = self.burst3  # type: ignore[misc]  # set when bound
+        # The common 3-axis int16 burst, unrolled, the rounding half folded into the offset term.
+        # Each axis unpacks its own three numbers (_q0.._q2): 8 locals and 3 stack slots fit the
+        # 11 words a frame may take on the C stack; unpacking all 11 numbers at once took the
+        # frame from the heap on every call (py/objfun.c: a third of the sample on the M0+),
+        # and reading each from the flat list costs the VM a subscript apiece. k is 15 here
+        # (K for a raw range centred on 0). Bound: |v*g| <= 2**28, |(v*l) >> 15| < 2**15,
+        # |c| <= 2**29 + 2**23: sum < 2**30.
+        s = self._s
+        g, lo, c = self._q0  # type: ignore[misc]  # set when this method is bound
         v = ((buf[0] << 8 | buf[1]) ^ 0x8000) - 0x8000
-        out[0] = (v * g0 + ((v * l0) >> k) - b0) >> s
+        out[0] = (v * g + ((v * lo) >> 15) - c) >> s
+        g, lo, c = self._q1  # type: ignore[misc]
         v = ((buf[2] << 8 | buf[3]) ^ 0x8000) - 0x8000
-        out[1] = (v * g1 + ((v * l1) >> k) - b1) >> s
+        out[1] = (v * g + ((v * lo) >> 15) - c) >> s
+        g, lo, c = self._q2  # type: ignore[misc]
         v = ((buf[4] << 8 | buf[5]) ^ 0x8000) - 0x8000
-        out[2] = (v * g2 + ((v * l2) >> k) - b2) >> s
+        out[2] = (v * g + ((v * lo) >> 15) - c) >> s
 
     def value(self, t, raw, axis=0):
         """update(t) then apply(raw, axis)."""

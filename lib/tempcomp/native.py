@@ -22,7 +22,6 @@ import array
 import micropython
 
 _P = 11  # g0 l0 c0 g1 l1 c1 g2 l2 c2 k s: the pure path's list, as 32-bit words
-_BUFFERS = (bytearray, bytes, memoryview)  # built once: a tuple of names in a call allocates
 
 
 def params():
@@ -31,25 +30,24 @@ def params():
 
 
 def _thumb():
-    # the asm_thumb batch kernel writes words straight into a list's item array or an int32
-    # array: only where it exists (ARM) and after it reproduced the viper kernel here
+    # the asm_thumb batch kernel: only where it exists (ARM) and after it reproduced the viper
+    # kernel here; (kernel, type words) or False
     try:
         from tempcomp import thumb
     except (ImportError, SyntaxError, ValueError, NotImplementedError):
-        return None
-    return thumb.checked(_many)
+        return False
+    return thumb.checked(_many) or False
 
 
-_t = None  # the thumb kernel, False where there is none
+_t = None  # (asm kernel, its type words), False where there is none: tried once
 
 
 def kernels(p, check):
-    """(apply_be16, apply_be16_n) closures over the parameter array p; check(buf, out, n,
-    stride) raises the clear error of a bad batch call (fixedpoint's own check)."""
+    """(apply_be16, apply_be16_n) over the parameter array p; check(buf, out, n, stride)
+    raises the clear error of a bad batch call (fixedpoint's own check)."""
     global _t
     if _t is None:
-        _t = _thumb() or False
-    t = _t or None
+        _t = _thumb()
 
     @micropython.viper
     def one(buf, out):
@@ -66,47 +64,34 @@ def kernels(p, check):
         v = ((b[4] << 8 | b[5]) ^ 0x8000) - 0x8000
         out[2] = (v * q[6] + ((v * q[7]) >> k) - ((q[8] ^ e) - e)) >> s
 
-    return one, _Batch(p, check, t).many
+    # Default arguments, not closure cells, carry p and check: a closure over more than one cell
+    # called with 4 arguments builds its argument array on the heap (MemoryError under heap_lock)
+    def checked(buf, out, n, stride=6, p=p, check=check):
+        # what the asm kernel refuses: the clear error, or any other buffer and sequence
+        check(buf, out, n, stride)
+        if n:
+            _many(p, buf, out, n, stride)
+
+    if _t is False:
+        return one, checked
+    return one, _batch(p, _t[0], _t[1], checked)
 
 
-class _Batch:
-    # a bound method, not a closure: a closure over more than one cell called with 4 arguments
-    # builds its argument array on the heap
-    def __init__(self, p, check, t):
-        self.p = p
-        self.check = check
-        self.t = t
-        self.lb = None  # the last buf and out the asm kernel took, and the out's tag
-        self.lo = None
-        self.tg = 0
+def _batch(p, t, words, checked):
+    # apply_be16_n where the asm kernel is: one call to it with [buf, out, p, words] does the
+    # checks and the loop (thumb.batch); what it refuses goes to checked(). The list and the
+    # kernel are default arguments: a native function reads those without a call. The list
+    # keeps the last buf and out referenced until the next call.
+    pr = [None, None, p, words]
 
-    @micropython.native  # the same Python, compiled: about 1,000 fewer instructions a call
-    def many(self, buf, out, n, stride=6):
-        if n < 1 or stride < 6 or (n - 1) * stride + 6 > len(buf) or 3 * n > len(out):
-            self.check(buf, out, n, stride)  # raises unless n == 0 with a good stride
-            return
-        if out is self.lo and buf is self.lb and n < 32768 and stride < 16384:
-            # the same objects as last time, so the same kinds: n, tag and stride in one word
-            self.t(self.p, buf, out, stride << 16 | self.tg | n)
-            return
-        self.slow(buf, out, n, stride)
+    @micropython.native
+    def many(buf, out, n, stride=6, pr=pr, t=t, checked=checked):
+        pr[0] = buf
+        pr[1] = out
+        if t(pr, n, stride):
+            checked(buf, out, n, stride)
 
-    def slow(self, buf, out, n, stride):
-        t = self.t
-        if t is not None and n < 32768 and stride < 16384 and isinstance(buf, _BUFFERS):
-            if type(out) is list:
-                tg = 0x8000  # store small-int objects (v << 1 | 1)
-            elif type(out) is array.array and int32(out):
-                tg = 0  # store the plain words
-            else:
-                tg = -1
-            if tg >= 0:
-                self.lb = buf
-                self.lo = out
-                self.tg = tg
-                t(self.p, buf, out, stride << 16 | tg | n)
-                return
-        _many(self.p, buf, out, n, stride)
+    return many
 
 
 @micropython.viper
@@ -115,7 +100,8 @@ def _word(a) -> int:
 
 
 def int32(a):
-    # True when array a stores 32-bit two's-complement words (typecode i, or l on 32-bit)
+    # True when array a stores 32-bit two's-complement words (typecode i, or l on 32-bit):
+    # tempcomp.augment_native's check of its output arrays
     x = a[0]
     y = a[1]
     try:

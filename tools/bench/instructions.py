@@ -78,6 +78,15 @@ def insn(name, fn, args=(), n=1000, per=1):
         if best is None or d < best:
             best = d
     print("INSN %s %.1f %d" % (name, best * 1000.0 / n, per))
+def alloc(name, fn, args=(), n=20):
+    # heap bytes a call leaves allocated (gc.mem_alloc() over n calls after a collection)
+    gc.collect()
+    i = 0
+    a0 = gc.mem_alloc()
+    while i < n:
+        fn(*args)
+        i += 1
+    print("ALLOC %s %.1f" % (name, (gc.mem_alloc() - a0) / n))
 def floor(n=2000):
     gc.collect()
     print("INSN empty_loop %.1f 1" % (min(_empty(n), _empty(n)) * 1000.0 / n))
@@ -101,6 +110,7 @@ for suffix, mode in kinds:
     c = fp.Compensator(OFFS, SCS, T_CAL, out_scale=1000.0)
     c.update(1234)
     insn("apply_be16" + suffix, c.apply_be16, (buf, out))
+    alloc("apply_be16" + suffix, c.apply_be16, (buf, out))
     if hasattr(c, "apply_be16_n"):
         bufn = bytearray(bytes(buf) * %(batch)d)
         outn = [0] * (3 * %(batch)d)
@@ -124,8 +134,36 @@ if has_switch:
 
 # the anchors: the same compensation in floats
 T = [1234.0]
+OFF = [0.0, 0.0, 0.0]
+SCL = [0.0, 0.0, 0.0]
+def driver_temp(t):
+    # a typical driver, per temperature reading: each polynomial in powers of t, as written
+    for k in range(3):
+        off = 0.0
+        p = 1.0
+        for a in OFFS[k]:
+            off += a * p
+            p *= t
+        sc = 0.0
+        p = 1.0
+        for a in SCS[k]:
+            sc += a * p
+            p *= t
+        OFF[k] = off
+        SCL[k] = 1000.0 / sc
+def driver(buf, out):
+    # ... and per sample: struct.unpack of the burst, (raw - offset) * scale per axis, floats out
+    x, y, z = struct.unpack(">hhh", buf)
+    out[0] = (x - OFF[0]) * SCL[0]
+    out[1] = (y - OFF[1]) * SCL[1]
+    out[2] = (z - OFF[2]) * SCL[2]
+driver_temp(1234.0)
+insn("float_driver", driver, (buf, out))
+alloc("float_driver", driver, (buf, out))
+insn("float_driver_update", driver_temp, (1234.0,), 300)
 def naive(buf, out):
-    # what peer drivers do: unpack with struct, evaluate both polynomials on every sample
+    # heavier: both polynomials on every sample, as drivers that read the temperature with every
+    # sample do
     v = struct.unpack(">hhh", buf)
     t = T[0]
     for k in range(3):
@@ -326,6 +364,8 @@ ROWS = (
     ("update_pure", "  same, forced pure Python"),
     ("sample_with_update", "update(t) + apply_be16, a new temperature every sample"),
     ("sample_with_update_pure", "  same, forced pure Python"),
+    ("float_driver", "anchor: a typical driver's float 3-axis sample (struct, (raw - off) * scale)"),
+    ("float_driver_update", "  its per-temperature polynomials"),
     ("float_naive", "anchor: naive float 3-axis sample (struct, polynomials per sample)"),
     ("float_careful", "anchor: careful float 3-axis sample (T steady)"),
     ("float_careful_update", "  careful float, its per-temperature update"),
@@ -437,6 +477,8 @@ def parse(out):
             raw[p[1]] = (float(p[2]), int(p[3]))
         elif p and p[0].startswith("NATIVE"):
             extra[p[0]] = p[1]
+        elif p and p[0] == "ALLOC":
+            extra["ALLOC " + p[1]] = float(p[2])
     loop = raw.get("empty_loop", (0.0, 1))[0]
     net = {}
     for k, (v, per) in raw.items():
@@ -501,6 +543,9 @@ def bench(report):
     for name, label in BOARDS:
         if name in results:
             r = results[name]
+            if "apply_be16_pure" in r and "float_driver" in r:
+                report("instructions: %s 3-axis sample, pure Python / typical driver's float sample" % label,
+                       r["apply_be16_pure"] / r["float_driver"], "x")
             if "apply_be16" in r and "float_naive" in r:
                 report("instructions: %s 3-axis sample / naive float sample" % label,
                        r["apply_be16"] / r["float_naive"], "x")
@@ -522,6 +567,8 @@ README_ROWS = (
     ("apply_be16_n_pure", "batch, forced pure Python, per sample"),
     ("update", "`Compensator.update(t)`, a new temperature (scales varying with t)"),
     ("sample_with_update", "`update(t)` + `apply_be16`, a new temperature every sample"),
+    ("float_driver", "anchor: a typical driver's float 3-axis sample (`struct`, `(raw - offset) * scale` per axis)"),
+    ("float_driver_update", "its per-temperature polynomials"),
     ("float_naive", "anchor: naive float 3-axis sample (`struct`, both polynomials per sample)"),
     ("float_careful", "anchor: careful float 3-axis sample (polynomials once per temperature)"),
     ("float_careful_update", "careful float, its per-temperature update"),

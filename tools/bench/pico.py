@@ -6,11 +6,14 @@ The compensation scripts are the instruction bench's (tools/bench/instructions.p
 loops net of the empty loop, best of 3 after gc.collect()), run on the real rp2 firmware with
 tempcomp deployed as ``make deploy`` installs it; simulated time is exact, so ``ticks_us()`` over n
 calls gives 125 cycles per microsecond. ``read_compensated`` and ``read_raw`` go through the real
-I2C peripheral (400 kHz, each byte's time on the wire) to the simulated MPU-6500. The power-cut
+I2C peripheral (400 kHz, each byte's time on the wire) to the simulated MPU-6500. The augmented
+model's rows run tools/bench/augment.py's firmware script (base model, every term on) on the
+library as it is in this tree. The power-cut
 sweep cuts a store save at >= 200 points spread through its flash operations and reboots after
 each (tools/pico/cut.mjs); every restore must give the old or the new calibration.
 """
 
+import json
 import random
 import time
 
@@ -34,17 +37,37 @@ out = array("i", [0] * 7)
 raw = array("i", [0] * 7)
 insn("real_read_raw", imu.read_raw, (raw,), 200)
 insn("real_read_compensated", imu.read_compensated, (out,), 200)
+def locked(fn, a, n):
+    # the loop in a function: its names are locals on the C stack. At module level each name is a
+    # key of the script's globals table, and a new one stored under heap_lock() (the time
+    # difference, say) raises MemoryError when that table is full and must grow; the unlock
+    # in finally, because a heap left locked kills the rp2 firmware at its next soft reset
+    micropython.heap_lock()
+    try:
+        i = 0
+        t0 = time.ticks_us()
+        while i < n:
+            fn(a)
+            i += 1
+        return time.ticks_diff(time.ticks_us(), t0)
+    finally:
+        micropython.heap_unlock()
 gc.collect()
-fn = imu.read_compensated
-i = 0
-micropython.heap_lock()
-t0 = time.ticks_us()
-while i < 200:
-    fn(out)
-    i += 1
-d = time.ticks_diff(time.ticks_us(), t0)
-micropython.heap_unlock()
+d = locked(imu.read_compensated, out, 200)
 print("INSN real_read_compensated_locked %.1f 1" % (d * 1000.0 / 200))
+"""
+
+# the batch's fixed cost per call and its loop per sample: one sample a call and 64 (the
+# instruction bench's set-up)
+BATCH_SPLIT = r"""
+from tempcomp import fixedpoint as fp
+floor()
+c = fp.Compensator(%(offs)r, %(scs)r, %(t_cal)r, out_scale=1000.0)
+c.update(1234)
+for n in (1, 64):
+    buf = bytearray(b"\x80\x00\x12\x34\x7f\xff" * n)
+    out = [0] * (3 * n)
+    insn("batch_call_%%d" %% n, c.apply_be16_n, (buf, out, n), 100)
 """
 
 BOOT_HEAP = r"""
@@ -68,8 +91,12 @@ ROWS = [
     ("apply_be16", "3-axis compensated sample, apply_be16 (native kernels)"),
     ("apply_be16_pure", "same, forced pure Python"),
     ("apply_be16_n", "batch apply_be16_n, per sample (32 per call)"),
+    ("batch_fixed", "  its fixed cost per call (argument checks, the calls)"),
+    ("batch_loop", "  its loop, per sample"),
     ("apply_be16_n_pure", "batch, forced pure Python, per sample"),
-    ("float_naive", "anchor: naive float 3-axis sample"),
+    ("float_driver", "anchor: a typical driver's float 3-axis sample"),
+    ("float_driver_update", "  its per-temperature polynomials"),
+    ("float_naive", "anchor: naive float, both polynomials per sample"),
     ("float_careful", "anchor: careful float 3-axis sample"),
     ("real_read_raw", "MPU-6xxx read_raw through the real I2C (400 kHz)"),
     ("real_read_compensated", "MPU-6xxx read_compensated through the real I2C"),
@@ -77,14 +104,53 @@ ROWS = [
 ]
 
 
+AUG_ROWS = [
+    ("c", "augmented model, %s, reading unchanged"),
+    ("t", "  same, the temperature reading changing every sample"),
+    ("b", "  same, per sample of a burst of 32 (apply_be16_n)"),
+    ("c_pure", "  forced pure Python, reading unchanged"),
+    ("t_pure", "  forced pure Python, reading changing"),
+    ("float", "  its float anchor (careful float code), reading unchanged"),
+    ("float_t", "  its float anchor, reading changing"),
+]
+
+ALLOC_ROWS = [
+    ("apply_be16", "heap per call, apply_be16 (native)"),
+    ("apply_be16_pure", "heap per call, apply_be16 pure Python"),
+    ("float_driver", "heap per call, the typical driver's float sample"),
+]
+
+
 def measure(pico):
     got = {}
-    for code in (instructions.HARNESS + instructions.CORE % dict(
-            offs=instructions.OFFS, scs=instructions.SCS, t_cal=instructions.T_CAL, batch=instructions.BATCH),
-            instructions.HARNESS + MPU_REAL):
-        net, _ = instructions.parse(pico.run(code, timeout=1800))
+    setup = dict(offs=instructions.OFFS, scs=instructions.SCS, t_cal=instructions.T_CAL, batch=instructions.BATCH)
+    for code in (instructions.HARNESS + instructions.CORE % setup, instructions.HARNESS + BATCH_SPLIT % setup,
+                 instructions.HARNESS + MPU_REAL):
+        net, extra = instructions.parse(pico.run(code, timeout=1800))
         got.update({k: v * CYCLES_PER_NS for k, v in net.items()})
+        got.update({k: v for k, v in extra.items() if k.startswith("ALLOC ")})
+    if "batch_call_1" in got:
+        got["batch_loop"] = (got["batch_call_64"] - got["batch_call_1"]) / 63
+        got["batch_fixed"] = got["batch_call_1"] - got["batch_loop"]
     return got
+
+
+def augmented(pico):
+    """{name: {key: cycles per 3-axis sample}} of the augmented model on the Pico, base and every
+    term on: tools/bench/augment.py's firmware script (its keys: c / t the reading unchanged /
+    changing every sample, b per sample of a burst, *_pure forced to pure Python, float / float_t
+    its float anchor, plain the plain apply_be16; lock 'ok' when samples and bursts ran under
+    heap_lock()), on the library as it is in this tree."""
+    from tools.bench import augment
+
+    res = {}
+    for name, m in (("base", augment.model([])), ("every term", augment.model(list(augment.TERMS)))):
+        out = pico.run("import json\n" + augment.FW_BENCH % {
+            "model": json.dumps(m), "name": name, "n": 200, "pad": 0, "batch": augment.BATCH,
+            "modes": [None, False], "anchor": 1, "float_model": augment.FLOAT_MODEL}, timeout=1800)
+        line = [ln for ln in out.splitlines() if ln.startswith("INSN ")][0]
+        res[name] = {k: (v * CYCLES_PER_NS if k != "lock" else v) for k, v in json.loads(line[5:]).items()}
+    return res
 
 
 def sweep(pico, n=200, seed=1):
@@ -117,10 +183,26 @@ def bench(report):
         for key, label in ROWS:
             if key in got:
                 print("  %-66s %10s cycles" % (label, "{:,.0f}".format(got[key])), flush=True)
+        for key, label in ALLOC_ROWS:
+            if "ALLOC " + key in got:
+                print("  %-66s %10.1f bytes" % (label, got["ALLOC " + key]), flush=True)
+        aug = augmented(pico)
+        for name in ("base", "every term"):
+            r = aug[name]
+            for key, label in AUG_ROWS:
+                if key in r:
+                    print("  %-66s %10s cycles" % (label.replace("%s", name), "{:,.0f}".format(r[key])), flush=True)
         heap = [line.split()[1:] for line in pico.run(BOOT_HEAP).splitlines() if line.startswith("HEAP")][0]
         report("Pico: 3-axis apply_be16 (native), cycles beyond the loop", got["apply_be16"], "cycles")
-        report("Pico: same, pure Python / naive float", got["apply_be16_pure"] / got["float_naive"], "x")
+        report("Pico: same, pure Python / a typical driver's float sample",
+               got["apply_be16_pure"] / got["float_driver"], "x")
         report("Pico: batch apply_be16_n, per sample", got["apply_be16_n"], "cycles")
+        ev = aug["every term"]
+        report("Pico: augmented model, every term, reading changing / its float anchor",
+               ev["t"] / ev["float_t"], "x (%.0f / %.0f cycles)" % (ev["t"], ev["float_t"]))
+        report("Pico: augmented model, base / the plain apply_be16 sample", aug["base"]["c"] / aug["base"]["plain"], "x")
+        report("Pico: augmented model under heap_lock(), base and every term",
+               "ok" if aug["base"]["lock"] == ev["lock"] == "ok" else "FAIL", "")
         report("Pico: read_compensated / read_raw through the real I2C",
                got["real_read_compensated"] / got["real_read_raw"], "x")
         report("Pico: heap at boot (free of total)", float(heap[1]) / 1024, "KB of %.0f KB" % (float(heap[0]) / 1024))

@@ -122,16 +122,21 @@ class PicoInterp:
     def flash(self):
         return self.board.flash
 
+    def world(self):
+        """A WorldControl on this board's world (close it when done)."""
+        return WorldControl(os.path.join(self.home, "world.sock"))
+
     def run(self, code, timeout=300):
         from mpremote.transport import TransportError
 
         t = self.transport
-        t.enter_raw_repl(soft_reset=True)
         try:
+            t.enter_raw_repl(soft_reset=True)
             t.exec_raw_no_follow("import sys\nsys.path[:] = ['', '/vmtest', '/lib']\ndel sys\n" + code)
             out, err = t.follow(timeout)
-        except TransportError as e:
-            raise InterpError("[pico] %s" % e) from None
+        except (TransportError, OSError) as e:
+            # the board's log says why (a firmware that stopped names where)
+            raise InterpError("[pico] %s\n%s" % (e, "".join(self.board.lines[-20:]))) from None
         out = out.replace(b"\r\n", b"\n").decode(errors="replace")
         if err:
             raise InterpError("[pico] script raised:\n%s\n%s" % (out, err.replace(b"\r\n", b"\n").decode(errors="replace")))
@@ -147,6 +152,69 @@ class PicoInterp:
             self.transport = None
         self.board.stop()
         shutil.rmtree(self.home, ignore_errors=True)
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+
+class WorldControl:
+    """The virtual Pico's world from the host (tools/pico/control.mjs): a test rig's hands.
+
+        w = WorldControl(os.path.join(home, "world.sock"))   # beside the board's pid file
+        w.place("+x"); w.spin((0, 0, 20)); w.bump(for_ms=400); w.heat([(0, 20), (30, 50)])
+        w.state()   # {"rp2040_ms", "world_ms", "temperature_c", "face", "rate"}
+
+    Each call is done at the RP2040's simulated time when it arrives; a refused request raises
+    ValueError with the board's reason.
+    """
+
+    def __init__(self, path, timeout=30):
+        import socket
+
+        self.sock = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+        self.sock.settimeout(timeout)
+        self.sock.connect(path)
+        self.rfile = self.sock.makefile("r", encoding="utf-8")
+
+    def call(self, cmd, **args):
+        self.sock.sendall((json.dumps(dict(args, cmd=cmd)) + "\n").encode())
+        line = self.rfile.readline()
+        if not line:
+            raise InterpError("[pico] the world control closed the connection")
+        answer = json.loads(line)
+        if not answer.get("ok"):
+            raise ValueError(answer.get("error"))
+        return answer
+
+    def state(self):
+        return self.call("state")["state"]
+
+    def place(self, face):
+        return self.call("place", face=face)["state"]
+
+    def spin(self, rate_dps):
+        return self.call("spin", rate=list(rate_dps))["state"]
+
+    def bump(self, after_ms=0, for_ms=1000, rate_dps=None):
+        args = dict(after_ms=after_ms, for_ms=for_ms)
+        if rate_dps is not None:
+            args["rate"] = list(rate_dps)
+        return self.call("bump", **args)["state"]
+
+    def heat(self, points):
+        return self.call("heat", points=[list(p) for p in points])["state"]
+
+    def temperature_at(self, rp2040_ms):
+        """The temperature (degC) at those RP2040 times (ms since its power-on, as ticks_ms()),
+        under the temperature programme in force now."""
+        return self.call("temperature", at_ms=list(rp2040_ms))["temperature_c"]
+
+    def close(self):
+        self.rfile.close()
+        self.sock.close()
 
     def __enter__(self):
         return self

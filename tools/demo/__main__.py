@@ -1,6 +1,7 @@
 """`make demo`: a whole calibration on the virtual board, end to end, then a real log's diagnosis.
 
     make demo                          # the virtual board (no hardware)
+    make demo BOARD=pico               # the virtual Raspberry Pi Pico: the real RP2040 firmware
     make demo PORT=/dev/ttyACM0 BOARD=pico   # the same on a real board
 
 Steps: start the virtual board (MicroPython VM with a simulated MPU-6500, MLX90609 and analog
@@ -111,6 +112,9 @@ while time.ticks_diff(time.ticks_ms(), t0) < 15000:
     print("ROW", repr((time.ticks_diff(time.ticks_ms(), t0) / 1000, r["temp_c"], r)))
 """
 
+HANDS_NOTE = {"knock": "  (virtual %s: someone knocks the table during this capture)",
+              "heat": "  (virtual %s: a heater warms it from %g to 50 degC)"}
+
 SENSORS = (("mpu_gz", "MPU-6500 gyro z"), ("mlx", "MLX90609"), ("adxrs", "analog gyro (ADXRS-style)"))
 
 
@@ -134,7 +138,7 @@ class Echo:
         self.cr = False
         self.held = False
 
-    HIDDEN = ("ROW ", "STATE ")  # values the demo parses, not for the reader
+    HIDDEN = ("ROW ", "STATE ", "HANDS ")  # values the demo parses, not for the reader
 
     def __call__(self, c):
         if self.tty:
@@ -281,17 +285,38 @@ def main(argv=None):
     a = ap.parse_args(argv)
     virtual = not a.port
     board = a.board or ("virtual" if virtual else "")
+    if virtual and board not in ("virtual", "pico"):
+        raise SystemExit("make demo BOARD=%s needs PORT= (a real board); without PORT, BOARD is virtual "
+                         "(the VM board) or pico (the virtual Raspberry Pi Pico)" % board)
+    pico = virtual and board == "pico"
     if not virtual and board in ("", "virtual"):
         raise SystemExit("make demo PORT=%s needs the board module too, e.g. BOARD=pico "
                          "(one of boards/*.py)" % a.port)
     t_start = time.time()
-    png = os.path.join(OUT, "demo.png")
+    png = os.path.join(OUT, "demo-pico.png" if pico else "demo.png")
     done = []
     vb = None
     echo = Echo()
     try:
         header(1, "the board")
-        if virtual:
+        if pico:
+            from tools.demo import pico as picodemo
+
+            vb = VirtualBoard(os.path.join(REPO, "build", "demo-pico"), port=a.tcp, board="pico",
+                              env={"VBOARD_TIME_SCALE": str(TIME_SCALE), "VBOARD_PROFILE": "0:%g" % ROOM_C})
+            vb.start(timeout=60)
+            port = vb.url
+            say("virtual Raspberry Pi Pico on %s: the MicroPython 1.27.0 rp2 firmware on an emulated RP2040,"
+                % port)
+            say("  littlefs flash in %s" % os.path.relpath(vb.flash, REPO))
+            say("  sensors on its real peripherals: MPU-6500 on I2C0 (GP4/GP5), MLX90609 on SPI0 (CS GP17),"
+                " analog gyro on ADC0/ADC1")
+            say("  world: a steady %g degC room, time runs x%d; the demo's hands (knock, faces, heater,"
+                " turntable)" % (ROOM_C, TIME_SCALE))
+            say("  act through the board's world control socket on the host (%s), never from the board"
+                % os.path.relpath(os.path.join(vb.home, "world.sock"), REPO))
+            done.append("started the virtual Pico (%s)" % port)
+        elif virtual:
             vb = VirtualBoard(os.path.join(REPO, "build", "demo"), port=a.tcp,
                               env={"VBOARD_TIME_SCALE": str(TIME_SCALE), "VBOARD_PROFILE": "0:%g" % ROOM_C})
             vb.start()
@@ -319,11 +344,34 @@ def main(argv=None):
         done.append("deployed lib/tempcomp (.mpy) and boards/%s.py as tempcomp_board" % board)
 
         header(3, "the calibration session (scripted answers; what a user types is in docs/demo.md)")
-        if virtual:
+        if pico:
+            heated = []
+
+            def hands(step, attempt):
+                # what the user's hands do to the virtual Pico's world before each capture
+                with picodemo.world(vb) as w:
+                    if step == "still":
+                        w.place("+z")
+                        if attempt == 1:
+                            say(HANDS_NOTE["knock"] % "Pico")
+                            # 0.4 s of the RP2040's time (x4): the firmware spends about 0.1 s
+                            # of it setting the capture up (the VM board's code takes no board time)
+                            w.bump(after_ms=0, for_ms=1600)
+                    elif step.startswith("face:"):
+                        w.place(step[5:])
+                    elif step == "warm":
+                        w.place("+z")
+                        if not heated:
+                            heated.append(1)
+                            say(HANDS_NOTE["heat"] % ("Pico", ROOM_C))
+                            w.heat(HEAT)
+
+            out = picodemo.run(port, picodemo.SESSION % dict(points=POINTS, step=STEP_C), hands, echo)
+        elif virtual:
             code = SESSION_VIRTUAL % dict(heat=HEAT, points=POINTS, step=STEP_C, room=ROOM_C)
+            out = live.run(code, timeout=600)
         else:
-            code = SESSION_REAL
-        out = live.run(code, timeout=600)
+            out = live.run(SESSION_REAL, timeout=600)
         temps = [float(line.split()[2]) for line in out.splitlines() if line.strip().startswith("point at ")]
         span = (min(temps), max(temps)) if len(temps) > 1 else None
         redo = out.count("redo:")
@@ -354,10 +402,28 @@ def main(argv=None):
         if virtual:
             say("the board turns at %g deg/s about z on a turntable while a chamber takes it %g -> 48 -> %g degC"
                 % (SPIN_DPS, ROOM_C, ROOM_C))
-            out = remote.run(SWEEP_VIRTUAL % dict(spin=SPIN_DPS, sweep=SWEEP, secs=SWEEP_S), timeout=300)
+        if pico:
+            def turntable(step, attempt):
+                with picodemo.world(vb) as w:
+                    w.place("+z")
+                    w.spin((0, 0, SPIN_DPS))
+                    w.heat(SWEEP)
+
+            out = picodemo.run(port, picodemo.SWEEP % dict(ms=SWEEP_S * 1000 // TIME_SCALE), turntable,
+                               lambda c: None)
+            ticks = parse(out, "ROW")
+            if not ticks:
+                raise BoardError("no readings streamed:\n" + out[-2000:])
+            # the chamber's true temperature at each reading's RP2040 time, from the world
+            with picodemo.world(vb) as w:
+                temps = w.temperature_at([ms for ms, _ in ticks])
+            rows = [((ms - ticks[0][0]) * TIME_SCALE / 1000.0, c, r) for (ms, r), c in zip(ticks, temps)]
         else:
-            out = remote.run(SWEEP_REAL, timeout=120)
-        rows = parse(out, "ROW")
+            if virtual:
+                out = remote.run(SWEEP_VIRTUAL % dict(spin=SPIN_DPS, sweep=SWEEP, secs=SWEEP_S), timeout=300)
+            else:
+                out = remote.run(SWEEP_REAL, timeout=120)
+            rows = parse(out, "ROW")
         if not rows:
             raise BoardError("no readings streamed:\n" + out[-2000:])
         say("%7s %7s | %-21s | %-21s | %-21s" % ("time s", "degC", "MPU gz comp / raw", "MLX comp / raw",
@@ -375,7 +441,8 @@ def main(argv=None):
             truth("mlx", virtual), len(rows),
             "; span = %.1f..%.1f degC, between the session's points" % span if span else ""))
         table(errs, span)
-        title = ("tempcomp on the virtual board: rate error vs temperature (turntable %g deg/s)" % SPIN_DPS
+        where = "the virtual Pico (RP2040 firmware)" if pico else "the virtual board"
+        title = ("tempcomp on %s: rate error vs temperature (turntable %g deg/s)" % (where, SPIN_DPS)
                  if virtual else "tempcomp on %s: rate error at rest" % board)
         plot(errs, png, title, span)
         say("plot: %s" % os.path.relpath(png, REPO))
@@ -384,7 +451,7 @@ def main(argv=None):
     finally:
         if vb is not None:
             vb.stop()
-            say("virtual board stopped")
+            say("virtual Pico stopped" if pico else "virtual board stopped")
 
     header(7, "the fixed-point core against float64 (in the MicroPython VM)")
     r = subprocess.run([sys.executable, "-m", "tools.demo.fixedpoint"], cwd=REPO, capture_output=True, text=True)

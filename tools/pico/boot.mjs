@@ -5,7 +5,7 @@
 import fs from "node:fs";
 import path from "node:path";
 import { fileURLToPath, pathToFileURL } from "node:url";
-import { Pico, elfSymbols } from "./rp2040.mjs";
+import { Pico, elfFunctions, elfSymbols } from "./rp2040.mjs";
 import { loadWorld } from "./world.mjs";
 
 const HERE = path.dirname(fileURLToPath(import.meta.url));
@@ -20,7 +20,9 @@ export function boardPins(file = path.join(REPO, "boards", "pico.py")) {
     if (!m) throw new Error(`${file}: no ${name}`);
     return Number(m[1]);
   };
-  return { i2cId: num("I2C_ID"), sda: num("I2C_SDA"), scl: num("I2C_SCL"), cs: num("MLX_CS") };
+  const div = /^ADC_DIVIDER\s*=\s*([0-9.]+)/m.exec(text);
+  return { i2cId: num("I2C_ID"), sda: num("I2C_SDA"), scl: num("I2C_SCL"), cs: num("MLX_CS"),
+    adcDivider: div ? Number(div[1]) : 1.0 };
 }
 
 export async function loadFirmware(dir = FW_DIR) {
@@ -30,11 +32,12 @@ export async function loadFirmware(dir = FW_DIR) {
     throw new Error(`${gone.map((f) => path.relative(process.cwd(), f)).join(", ")} missing: run make setup`);
   }
   const { bootromB1 } = await import(pathToFileURL(need[2]).href);
-  const syms = elfSymbols(fs.readFileSync(need[1]), ["i2c_read_blocking_until", "i2c0_inst", "i2c1_inst"]);
+  const elf = fs.readFileSync(need[1]);
+  const syms = elfSymbols(elf, ["i2c_read_blocking_until", "i2c0_inst", "i2c1_inst"]);
   for (const k of ["i2c_read_blocking_until", "i2c0_inst", "i2c1_inst"]) {
     if (syms[k] === undefined) throw new Error(`${need[1]}: no symbol ${k}`);
   }
-  return { firmware: fs.readFileSync(need[0]), bootrom: bootromB1, syms };
+  return { firmware: fs.readFileSync(need[0]), bootrom: bootromB1, syms, symbolAt: elfFunctions(elf) };
 }
 
 // { pico, world, restart(), resetRequested(), close() }; world: loadWorld's options, or an
@@ -47,8 +50,11 @@ export async function bootPico({ image, world = {}, onSerial = () => {}, log = (
   if (!wired.includes(pins.cs)) {
     throw new Error(`boards/pico.py has the MLX90609's CS on GP${pins.cs}, the world wires it to ${wired}`);
   }
+  if (bus.adcDivider() !== pins.adcDivider) {
+    throw new Error(`boards/pico.py has ADC_DIVIDER = ${pins.adcDivider}, the world's analog gyro a 1:${bus.adcDivider()} divider`);
+  }
   const make = () => {
-    const p = new Pico({ firmware: fw.firmware, bootrom: fw.bootrom, image, bus, onSerial });
+    const p = new Pico({ firmware: fw.firmware, bootrom: fw.bootrom, image, bus, onSerial, symbolAt: fw.symbolAt });
     p.hookI2cReads(fw.syms.i2c_read_blocking_until, [fw.syms.i2c0_inst, fw.syms.i2c1_inst]);
     p.i2cOnPins(pins.i2cId, pins.sda, pins.scl);
     return p;

@@ -7,6 +7,7 @@
 # (every call passes its time since the RP2040 started, in seconds as a float: the bridge carries
 # 32-bit ints; temperature and motion follow the emulated CPU).
 import binascii
+import json
 
 import vboard
 import vboard_sensors
@@ -52,6 +53,11 @@ def cs_pins():
     return ",".join(str(p) for p in sorted(board._cs))
 
 
+def adc_divider():
+    # the analog gyro's divider on this PCB (boards/pico.py must say the same: boot.mjs)
+    return vboard_sensors.ADXRS_DIVIDER
+
+
 def pin(p, level, s):
     _at(s)
     board.pin_write(p, level)
@@ -77,10 +83,35 @@ def adc(channel, s):
     return board.adc_read(26 + channel)
 
 
-def world(src, s):
-    # a line from the test rig on UART0 (pico_rig.py): an expression on vboard_sensors.world
+def _state(s):
+    w = vboard_sensors.world
+    return {"rp2040_ms": s * 1000, "world_ms": board.clock_ms(), "temperature_c": w.temperature_c(),
+            "face": w.face, "rate": list(w.rate)}
+
+
+def control(req, s):
+    # A request of the host's world control (control.mjs checked its verb and numbers), as JSON
+    # text, done at the RP2040's time s; the answer as JSON text. Fixed verbs on the world's
+    # own methods, nothing evaluated.
     _at(s)
+    w = vboard_sensors.world
     try:
-        return repr(eval(src, {"world": vboard_sensors.world, "board": board}))
-    except Exception as e:  # the rig answers errors too, it never stops the world
-        return "!%s: %s" % (type(e).__name__, e)
+        r = json.loads(req)
+        cmd = r["cmd"]
+        if cmd == "place":
+            w.place(r["face"])
+        elif cmd == "spin":
+            w.spin(r["rate"])
+        elif cmd == "bump":
+            w.bump(tuple(r.get("rate", (60.0, -45.0, 80.0))), r["after_ms"], r["for_ms"])
+        elif cmd == "heat":
+            w.heat([(p[0], p[1]) for p in r["points"]])
+        elif cmd == "temperature":
+            # the programme in force now, at those RP2040 times (ms since it started)
+            temps = [board.profile.at_ms(board.clock_ms_at(_base_us + int(ms * 1000 + 0.5))) for ms in r["at_ms"]]
+            return json.dumps({"ok": True, "temperature_c": temps})
+        elif cmd != "state":
+            raise ValueError("unknown cmd %r" % (cmd,))
+    except Exception as e:  # a bad request is answered, it never stops the world
+        return json.dumps({"ok": False, "error": "%s: %s" % (type(e).__name__, e)})
+    return json.dumps({"ok": True, "state": _state(s)})

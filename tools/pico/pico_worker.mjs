@@ -11,11 +11,11 @@
 // the wall clock, so a sleep takes its real time and the world does not race ahead while you
 // type. PICO_REALTIME=0 lets sleeps pass at once instead.
 
-import { parentPort, workerData } from "node:worker_threads";
+import { parentPort, receiveMessageOnPort, workerData } from "node:worker_threads";
 import { CTL, Ring } from "../vboard/rings.mjs";
 import { bootPico } from "./boot.mjs";
 
-const { shared, image, world: worldOpts, realtime } = workerData;
+const { shared, image, world: worldOpts, realtime, control } = workerData;
 const ctl = new Int32Array(shared.ctl);
 const inRing = new Ring(ctl, shared.inBuf, CTL.IN_W, CTL.IN_R);
 const outRing = new Ring(ctl, shared.outBuf, CTL.OUT_W, CTL.OUT_R);
@@ -51,8 +51,24 @@ const MAX_LAG_NS = 50e6;
 let wall0 = performance.now();
 let sim0 = board.pico.nanos;
 
+// world control requests (tools/pico/control.mjs), each at the RP2040's time between two slices
+function worldRequests() {
+  let m;
+  while (control && (m = receiveMessageOnPort(control))) {
+    const { id, req } = m.message;
+    let answer;
+    try {
+      answer = JSON.parse(board.world.control(JSON.stringify(req), board.pico.nanos));
+    } catch (e) {
+      answer = { ok: false, error: String(e.message || e) };
+    }
+    control.postMessage({ id, answer });
+  }
+}
+
 function loop() {
   for (;;) {
+    worldRequests();
     const input = inRing.read(4096);
     if (input.length) board.pico.serialIn(input);
     const pico = board.pico;

@@ -69,7 +69,9 @@ class Quiet extends ConsoleLogger {
 export class Pico {
   // firmware: Uint8Array of firmware.bin; bootrom: the B1 mask ROM words; image: path of the host
   // file holding the filesystem region (created erased), or null for a flash that is not kept
-  constructor({ firmware, bootrom, image = null, bus = null, onSerial = () => {}, onUart = null }) {
+  // symbolAt(addr): the firmware function holding addr (elfFunctions), for fault messages
+  constructor({ firmware, bootrom, image = null, bus = null, onSerial = () => {}, onUart = null, symbolAt = null }) {
+    this.symbolAt = symbolAt;
     this.sim = new Simulator();
     const mcu = (this.mcu = this.sim.rp2040);
     mcu.logger = new Quiet();
@@ -104,12 +106,20 @@ export class Pico {
   // ------------------------------------------------------------ flash
 
   loadImage(path) {
+    // never through a link: a name in build/pico replaced by a symlink (to ~/.bashrc, say)
+    // must not have the flash written into its target (as the VM board's flash directory)
+    const C = fs.constants;
     let fd;
     try {
-      fd = fs.openSync(path, "r+");
+      fd = fs.openSync(path, C.O_RDWR | C.O_NOFOLLOW);
     } catch (e) {
+      if (e.code === "ELOOP") throw new Error(`${path} is a symbolic link: the flash image is not written through links`);
       if (e.code !== "ENOENT") throw e;
-      fd = fs.openSync(path, "w+");
+      fd = fs.openSync(path, C.O_RDWR | C.O_CREAT | C.O_EXCL | C.O_NOFOLLOW, 0o600);
+    }
+    if (!fs.fstatSync(fd).isFile()) {
+      fs.closeSync(fd);
+      throw new Error(`${path} is not a regular file: not a flash image`);
     }
     const size = fs.fstatSync(fd).size;
     if (size !== FS_BYTES) {
@@ -146,7 +156,13 @@ export class Pico {
     } else if (code === BK_PROGRAM) {
       this.flashOp("program", r[0], r[2], 0, r[1]);
     } else {
-      throw new Error(`breakpoint ${code} at 0x${(core.PC - 2).toString(16)}`);
+      // the firmware's own BKPT: pico-sdk's panic() and MicroPython's nlr_jump_fail() (a fatal
+      // error: "FATAL: uncaught exception" on the console). Without a debugger a real RP2040
+      // takes a HardFault there and halts until a reset; here the CPU stops with that message
+      const at = core.PC - 2;
+      const fn = this.symbolAt ? this.symbolAt(at) : null;
+      throw new Error(`breakpoint ${code} at 0x${at.toString(16)}${fn ? ` in ${fn}` : ""}: the firmware stopped ` +
+        "(a real RP2040 halts here until reset)");
     }
     core.PC = core.LR & ~1; // return from the ROM function
   }
@@ -491,6 +507,33 @@ export class Pico {
     this.sim.stop();
     this.closeImage();
   }
+}
+
+// The ELF32 symbol table's functions: a lookup address -> "name" (the function whose range holds it)
+export function elfFunctions(buf) {
+  const dv = new DataView(buf.buffer, buf.byteOffset, buf.byteLength);
+  const shoff = dv.getUint32(32, true);
+  const shentsize = dv.getUint16(46, true);
+  const shnum = dv.getUint16(48, true);
+  const fns = [];
+  for (let i = 0; i < shnum; i++) {
+    const sh = shoff + i * shentsize;
+    if (dv.getUint32(sh + 4, true) !== 2) continue; // SHT_SYMTAB
+    const off = dv.getUint32(sh + 16, true);
+    const size = dv.getUint32(sh + 20, true);
+    const strOff = dv.getUint32(shoff + dv.getUint32(sh + 24, true) * shentsize + 16, true);
+    for (let p = off; p < off + size; p += 16) {
+      if ((buf[p + 12] & 0xf) !== 2) continue; // STT_FUNC
+      let s = strOff + dv.getUint32(p, true);
+      let name = "";
+      while (buf[s]) name += String.fromCharCode(buf[s++]);
+      fns.push([dv.getUint32(p + 4, true) & ~1, dv.getUint32(p + 8, true), name]);
+    }
+  }
+  return (addr) => {
+    const f = fns.find(([a, n]) => addr >= a && addr < a + Math.max(n, 2));
+    return f ? f[2] : null;
+  };
 }
 
 // An ELF32 symbol table: name -> address (function symbols without the Thumb bit)

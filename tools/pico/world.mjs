@@ -42,6 +42,7 @@ export async function loadWorld({ scenario = "steady", profile = "", timeScale =
   const pb = mp.pyimport("pico_bus");
   const us = (ns) => ns / 1e9 + 1e-12; // seconds, never an exact integer (the bridge's ints are 32-bit)
   const csPins = String(pb.cs_pins()).split(",").filter(Boolean).map(Number);
+  const divider = Number(pb.adc_divider());
   // the bus object rp2040.mjs wires to the peripherals (times in ns of the RP2040's clock)
   return {
     mp,
@@ -49,11 +50,13 @@ export async function loadWorld({ scenario = "steady", profile = "", timeScale =
     i2cWrite: (bus, addr, bytes, ns) => pb.i2c_write(bus, addr, Buffer.from(bytes).toString("hex"), us(ns)),
     i2cRead: (bus, addr, n, ns) => Buffer.from(pb.i2c_read(bus, addr, n, us(ns)), "hex"),
     csPins: () => csPins,
+    adcDivider: () => divider,
     pinChanged: (pin, level, ns) => pb.pin(pin, level, us(ns)),
     spiExchange: (bus, byte, ns) => pb.spi_exchange(bus, byte, us(ns)),
     adcRead: (ch, ns) => pb.adc(ch, us(ns)),
     reset: (ns) => pb.reset(us(ns)),
-    world: (src, ns) => String(pb.world(src, us(ns))),
+    // a world control request (control.mjs, checked there) as JSON text; the answer as JSON text
+    control: (req, ns) => String(pb.control(req, us(ns))),
     clockUs: () => Math.round(Number(pb.clock_s()) * 1e6),
   };
 }

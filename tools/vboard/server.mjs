@@ -24,7 +24,8 @@
 // VBOARD_TIME_SCALE (simulated seconds per board second for the profile),
 // VBOARD_PROFILE (temperature profile "s:degC,s:degC,...", replacing the scenario).
 
-import { Worker } from "node:worker_threads";
+import { MessageChannel, Worker } from "node:worker_threads";
+import { startControl, workerLink } from "../pico/control.mjs";
 import fs from "node:fs";
 import path from "node:path";
 import { spawn } from "node:child_process"; // the pty bridge
@@ -292,15 +293,23 @@ function startWorker(soft = false, mode = "friendly") {
 
 // The virtual Pico (tools/pico/pico_worker.mjs): the same serial rings; its firmware does
 // Ctrl-C, resets and the raw REPL itself.
+// The world control socket (tools/pico/control.mjs) talks to it through a message port.
+let picoLink = null;
+let worldControl = null;
 function picoWorker() {
   fs.mkdirSync(path.dirname(opts.flash), { recursive: true });
+  const { port1, port2 } = new MessageChannel();
+  if (picoLink) picoLink.close();
+  picoLink = workerLink(port1);
   return new Worker(path.join(REPO, "tools", "pico", "pico_worker.mjs"), {
     workerData: {
       shared,
       image: opts.flash,
       world: { scenario: opts.scenario, profile: opts.profile, timeScale: opts.timeScale },
       realtime: process.env.PICO_REALTIME !== "0",
+      control: port2,
     },
+    transferList: [port2],
   });
 }
 
@@ -516,6 +525,7 @@ function shutdown(code = 0) {
     if (ttyLink && fs.readlinkSync(ttyLink).startsWith("/dev/")) fs.rmSync(ttyLink);
   } catch {}
   if (ptyBridge) ptyBridge.kill();
+  if (worldControl) worldControl.close();
   process.exit(code);
 }
 process.on("SIGTERM", () => shutdown(0));
@@ -536,6 +546,7 @@ function announce() {
       `  exec, cp, run, mount: mpremote connect ${listenUrl} ...` +
       (ttyShown ? "  (its repl needs the tty above)\n" : "  (no pty: --no-pty)\n") +
       `  flash: ${shown(opts.flash)} (${mb} MiB); ${room} (--scenario steady|heating|cooling|cycle)\n` +
+      (worldControl ? `  world control (host only, mode 0600): ${shown(worldControl.path)}\n` : "") +
       `  stop: Ctrl-C here, or 'make board-stop'`,
   );
 }
@@ -566,6 +577,10 @@ line = serveSerialLine(
     },
     listening: (port) => {
       writePidfile(opts.pidfile, SERVER_SCRIPT); // never through a link at that name (boardproc.mjs)
+      if (opts.board === "pico") {
+        worldControl = startControl(path.join(path.dirname(opts.pidfile), "world.sock"),
+          (req) => picoLink.request(req), (m) => console.error(`virtual board: ${m}`));
+      }
       startWorker();
       listenUrl = `socket://${opts.host}:${port}`;
       console.log(opts.board === "pico" ? `virtual Pico: RP2040 firmware listening on ${listenUrl}`

@@ -82,7 +82,11 @@ class Board:
         return self._us / 1000000
 
     def clock_ms(self):
-        ms = self._us // 1000
+        return self.clock_ms_at(self._us)
+
+    def clock_ms_at(self, us):
+        """clock_ms() when clock_us() was us (the virtual Pico's host asks about past times)."""
+        ms = int(us) // 1000
         return int(ms * self._scale) if self._scale != 1 else ms
 
     def set_profile(self, points):
