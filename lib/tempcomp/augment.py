@@ -592,16 +592,15 @@ class Augmented:
         w[_TLO] = t_lo
         w[_THI] = t_hi
         w[_DTC] = -1
-        mid, kb, s = c.shape()
-        w[_MID] = mid
-        w[_LIM] = 1 << kb
-        w[_KB] = kb
-        w[_S2] = s - 2
-        w[_RND] = 1 << (s - 3)
+        w[_MID] = c._mid
+        w[_LIM] = 1 << c._k
+        w[_KB] = c._k
+        w[_S2] = c._s - 2
+        w[_RND] = 1 << (c._s - 3)
         w[_TSPAN] = t_hi - t_lo
-        w[_LIM2] = 2 << kb
-        w[_RNDO] = (1 << (s - 3)) + (1 << (s - 1))  # ((y + rnd) >> (S - 2) + 2) >> 2
-        w[_S2O] = s
+        w[_LIM2] = 2 << c._k
+        w[_RNDO] = (1 << (c._s - 3)) + (1 << (c._s - 1))  # ((y + rnd) >> (S - 2) + 2) >> 2
+        w[_S2O] = c._s
         w[_KONE] = _ONE
         w[_KFMAX] = _FMAX
         w[_DTI] = -1
@@ -610,14 +609,16 @@ class Augmented:
         w[_TOFF] = -1
         w[_NEED] = 6
         w[_UPMAX] = (1 << 30) - _DT_MAX
-        c.gains_into(w, _AXB + _GH, _AXS)  # _GH, _GL, _B: three consecutive words
         for i in range(3):
             ab = _AXB + _AXS * i
+            w[ab + _GH] = c._gh[i]
+            w[ab + _GL] = c._gl[i]
+            w[ab + _B] = c._b[i]
             w[ab + _RHO] = _ONE
             w[ab + _INV] = _ONE  # an axis without sensitivity terms keeps it
             # rho = G / G0 = (G << s) * R / 2**26 with G0 << s in [2**26, 2**27) and
             # R = floor(2**54 / (G0 << s)) in (2**27, 2**28]: G << s < 2**28 (G < 2 G0)
-            g0 = ((w[ab + _GH] << kb) + w[ab + _GL]) >> 2
+            g0 = ((c._gh[i] << c._k) + c._gl[i]) >> 2
             sh = 0
             while (g0 << sh) < (1 << 26):
                 sh += 1
@@ -629,7 +630,7 @@ class Augmented:
                 raise ValueError("axis %d: gain %r beyond the fixed-point range" % (i, g0))
         w[_PUPD] = len(w)
         for i in range(3):
-            w.extend(c.update_ints(i))
+            w.extend(_urec(c, i))
         # lowpass records with their alpha tables: 1 - exp(-2**k ms / tau) in Q28
         w[_NTAU] = len(taus)
         w[_PTAU] = len(w)
@@ -876,6 +877,22 @@ class Augmented:
         w[_LAST] = now
         w[_FL] |= _FTICK
         return dt
+
+
+def _urec(c, i):
+    # Compensator c's update() of axis i as integers (augment_native runs it): the constant-scale
+    # form (degree fd >= 0, its coefficients and shift) or the scale and offset polynomials and
+    # the division's exponents
+    sp = c._sc[i]
+    op = c._off[i]
+    fd = c._fd[i]
+    r = [fd, c._fs[i] if fd >= 0 else 0] + (c._fq[4 * i:4 * i + 4] if fd >= 0 else [0] * 4)
+    a = list(sp._a) + [0] * (4 - len(sp._a))
+    r += [sp._deg, sp._mid, sp._xl, sp._xs, sp._vs, sp._vm, sp._a0h, sp._a0l, a[1], a[2], a[3]]
+    a = list(op._a) + [0] * (4 - len(op._a))
+    r += [op._deg, op._mid, op._xl, op._xs, op._vs, op._vr, op._a0, a[1], a[2], a[3]]
+    r += [c._wg[i], c._eo[i], c._eg[i]]
+    return r
 
 
 def _lp(taus, tau, drift=False):

@@ -396,7 +396,7 @@ def apply_be16_n(self, t: int, buf, out, n: int, dt_ms, supply, acc):
 @micropython.viper
 def step(wp, t: int):
     """augment.Augmented._step: what depends on the reading t alone (clamped already), with
-    fixedpoint.Compensator.update's arithmetic for the base (the _UREC records of fixedpoint.Compensator.update_ints)."""
+    fixedpoint.Compensator.update's arithmetic for the base (the _UREC records of augment._urec)."""
     w = ptr32(wp)
     kb = w[_KB]
     fl = w[_FL]

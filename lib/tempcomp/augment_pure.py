@@ -221,14 +221,15 @@ def step(self, t):
     w = self._w
     c = self.comp
     c.update(t)
-    c.gains_into(w, _AXB + _GH, _AXS)  # _GH, _GL, _B: three consecutive words of each axis block
+    K = c._k
     fl = w[_FL]
-    if fl & _FRHO:
-        K = w[_KB]
-        ab = _AXB
-        while ab < _AXB + 3 * _AXS:
-            w[ab + _RHO] = _mul26((((w[ab + _GH] << K) + w[ab + _GL]) >> 2) << w[ab + _RS], w[ab + _RR])
-            ab += _AXS
+    for i in range(3):
+        ab = _AXB + _AXS * i
+        w[ab + _GH] = c._gh[i]
+        w[ab + _GL] = c._gl[i]
+        w[ab + _B] = c._b[i]
+        if fl & _FRHO:
+            w[ab + _RHO] = _mul26((((c._gh[i] << K) + c._gl[i]) >> 2) << w[ab + _RS], w[ab + _RR])
     w[_TC] = t
     if not fl & _FGEN:
         return

@@ -832,40 +832,6 @@ class Compensator:
         return (self._t_lo, self._t_hi, self._fxm, self._fxl, self._fxs, self._half, self._k, self._s,
                 tuple(self._gh), tuple(self._gl), tuple(self._fd), tuple(self._fs), tuple(self._fq))
 
-    def shape(self):
-        """(mid, k, s): apply()'s raw-range middle, the gain's limb split (gh * 2**k + gl) and its
-        output shift, for a kernel that runs apply()'s arithmetic itself (tempcomp.augment)."""
-        return self._mid, self._k, self._s
-
-    def gains_into(self, w, at, stride):
-        """Each axis's gain limbs and offset term as apply() reads them after the last update()
-        (gh, gl, b) into w[at], w[at + 1], w[at + 2], the next axis ``stride`` words on. Allocates
-        nothing: tempcomp.augment's pure kernel calls it on every new reading."""
-        gh = self._gh
-        gl = self._gl
-        b = self._b
-        for i in range(self.axes):
-            w[at] = gh[i]
-            w[at + 1] = gl[i]
-            w[at + 2] = b[i]
-            at += stride
-
-    def update_ints(self, i):
-        """Axis i's update() as a list of ints, for a kernel that runs it itself (tempcomp.augment's
-        native records): [fd, fs, fq x4] when its scale is constant (degree fd >= 0), else fd < 0;
-        then the scale polynomial's (deg, mid, xl, xs, vs, vm, a0h, a0l, a1..a3), the offset
-        polynomial's (deg, mid, xl, xs, vs, vr, a0, a1..a3) and the division's (wg, eo, eg)."""
-        sp = self._sc[i]
-        op = self._off[i]
-        fd = self._fd[i]
-        r = [fd, self._fs[i] if fd >= 0 else 0] + (self._fq[4 * i:4 * i + 4] if fd >= 0 else [0] * 4)
-        a = list(sp._a) + [0] * (4 - len(sp._a))
-        r += [sp._deg, sp._mid, sp._xl, sp._xs, sp._vs, sp._vm, sp._a0h, sp._a0l, a[1], a[2], a[3]]
-        a = list(op._a) + [0] * (4 - len(op._a))
-        r += [op._deg, op._mid, op._xl, op._xs, op._vs, op._vr, op._a0, a[1], a[2], a[3]]
-        r += [self._wg[i], self._eo[i], self._eg[i]]
-        return r
-
     def _update_fast(self, t):
         # update() when every scale is constant: the offset terms by Horner (_set_fast's
         # polynomials, the same arithmetic as update()'s branch for them), mul_shift inline
