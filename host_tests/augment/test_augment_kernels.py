@@ -13,6 +13,7 @@ from array import array
 import numpy as np
 import pytest
 from augsynth import every_term_model, inputs
+from paths import skip_unless_ci
 
 from tempcomp import augment
 from tools import REPO
@@ -278,7 +279,7 @@ def test_native_asm_viper_and_pure_agree_on(interp, scs):
 def test_native_and_pure_agree_on_the_virtual_pico(scs):
     why = picoctl.missing()
     if why:
-        pytest.skip("virtual Pico cannot run: " + why)
+        skip_unless_ci("virtual Pico cannot run: " + why)
     with picoctl.PicoInterp() as p:
         out = device_run(lambda code: p.run(code, timeout=1800), scs[-2:])
     assert "NATIVE tempcomp.augment_native_m0 True" in out  # the armv6m build, with its asm_thumb
