@@ -59,6 +59,10 @@ PENDING = {
 HISTORY = {
     ("docs/ram.md", "| boot | before | after |"): "the mpu_tcc change, before and after (2026-11-25)",
     ("docs/ram.md", "| step | before the store split | after |"): "the store split, before and after (2026-11-25)",
+    ("docs/ram.md", "| step (cumulative) | heap kept |"): "the sensors.restore boot before its cut below 24 KB, "
+                                                         "where the bytes went (2026-11-27)",
+    ("docs/ram.md", "| import | files over the mount (the bench) | files read in place (ROMFS, as from flash) |"):
+        "the .py imports' headroom under a ballast, measured once for test_ram's route (2026-11-27)",
     ("docs/host-libraries.md", "| reader | per file |"): "fastcsv against pandas and pyarrow, measured once for "
                                                         "the decision to keep it (2026-11-27)",
 }

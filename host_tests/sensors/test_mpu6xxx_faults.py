@@ -302,6 +302,49 @@ def test_restore_on_a_part_that_changed_its_trim_and_the_periodic_check(tmp_path
     assert imu2.check(every_ms=1000) == 0  # due, read, nothing changed
 
 
+def test_the_rare_faults_still_say_what_happened():
+    # their words live in tempcomp.mpu6xxx_faults, loaded only when one is raised (docs/ram.md):
+    # each reaches the user through the driver with its numbers, and the part is left as it was
+    sim, bus, imu = make("MPU-6500")
+    old = imu.offsets()
+    real = sim.write
+
+    def spill(reg, data):  # a clone whose gyro Y offset write also lands in the gyro Z register
+        real(reg, data)
+        if reg == 0x15:
+            real(0x17, bytes([data[0] ^ 0x01, data[1]]))
+
+    sim.write = spill
+    with pytest.raises(MPUError, match=r"offset register 0x17 holds -?\d+, not the -?\d+ written"):
+        imu.apply((5, 6, old[0][2]), old[1])
+    sim.write = real
+    assert imu.offsets() == old
+
+    sim.stuck = {0x7B}  # the Y accel write will not stick, and every rollback write NACKs
+
+    def nack(reg, data):
+        if reg == 0x13:
+            raise OSError(5)
+        return real(reg, data)
+
+    def stuck_then_nack(reg, data):
+        real(reg, data)
+        if reg == 0x7A:
+            sim.write = nack
+
+    sim.write = stuck_then_nack
+    with pytest.raises(MPUError, match=r"0x7a reads back .*; restoring the previous offsets failed too .*power-cycle"):
+        imu.apply((7, 8, 9), (old[1][0], old[1][1] + 2, old[1][2]))
+    sim.write = real
+    sim.stuck = set()
+
+    rec = imu.to_ints()
+    rec[7] += 2  # a record saved on a part with another factory trim, and offsets this one does not hold
+    rec[4] += 2
+    with pytest.warns(UserWarning, match=r"factory trim \(.*\) differs from the saved \(.*\): a different part\?"):
+        imu.apply_ints(rec)
+
+
 def test_fault_handling_in_the_micropython_vm(interp):
     import os
 

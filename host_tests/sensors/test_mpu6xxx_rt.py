@@ -62,7 +62,7 @@ def test_resumed_state_is_bit_identical_over_every_temperature(name, ranges):
             ca, cb = getattr(a, c), getattr(b, c)
             ca.update(t)
             cb.update(t)
-            assert list(ca._p3) == list(cb._p3), (name, ranges, t, c)
+            assert list(ca.burst3) == list(cb.burst3), (name, ranges, t, c)
     assert (a._ca.clamped, a._cg.clamped) == (b._ca.clamped, b._cg.clamped)
     assert a._ca.clamped > 0  # the sweep did leave the calibrated span
 
@@ -207,4 +207,4 @@ def test_random_models_compile_to_records_the_boot_accepts():
                 ca, cb = getattr(ref, c), getattr(got, c)
                 ca.update(t)
                 cb.update(t)
-                assert list(ca._p3) == list(cb._p3), (mi, fs, t, c)
+                assert list(ca.burst3) == list(cb.burst3), (mi, fs, t, c)

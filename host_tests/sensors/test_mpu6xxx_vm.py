@@ -107,7 +107,7 @@ def test_vm_integers_match_cpython(vm_out, interp):
                 rt.compensate(BiasModel.from_ints(model.to_ints()))
             rt._ca.update(t)
             rt._cg.update(t)
-            assert [int(v) for v in f[2:]] == list(rt._ca._p3) + list(rt._cg._p3), ln
+            assert [int(v) for v in f[2:]] == list(rt._ca.burst3) + list(rt._cg.burst3), ln
             n += 1
         elif f[0] == "TEMP":
             assert int(f[2]) == imu.temp_c100(int(f[1])), ln
@@ -135,14 +135,14 @@ for i, (mi, fs, g, a, ts) in enumerate(CASES_):
     for t in ts:
         imu._ca.update(t)
         imu._cg.update(t)
-        print("RES %d %d %s" % (i, t, " ".join([str(v) for v in list(imu._ca._p3) + list(imu._cg._p3)])))
+        print("RES %d %d %s" % (i, t, " ".join([str(v) for v in list(imu._ca.burst3) + list(imu._cg.burst3)])))
     model = BiasModel.from_ints(mi, 1)
     imu.compensate(model)
     for t in ts:
         imu._ca.update(t)
         imu._cg.update(t)
         tg = model.targets(t)
-        print("EXT %d %d %s" % (i, t, " ".join([str(v) for v in list(imu._ca._p3) + list(imu._cg._p3) + list(tg[0]) + list(tg[1])])))
+        print("EXT %d %d %s" % (i, t, " ".join([str(v) for v in list(imu._ca.burst3) + list(imu._cg.burst3) + list(tg[0]) + list(tg[1])])))
 """
 
 
@@ -165,7 +165,7 @@ def test_setup_integers_identical_on_every_interpreter(interp):
         for t in ts:
             imu._ca.update(t)
             imu._cg.update(t)
-            exp = list(imu._ca._p3) + list(imu._cg._p3)
+            exp = list(imu._ca.burst3) + list(imu._cg.burst3)
             assert next(lines) == "RES %d %d %s" % (i, t, " ".join(str(v) for v in exp)), (interp.name, i, t)
         model = BiasModel.from_ints(mi, 1)
         imu.compensate(model)
@@ -173,7 +173,7 @@ def test_setup_integers_identical_on_every_interpreter(interp):
             imu._ca.update(t)
             imu._cg.update(t)
             tg = model.targets(t)
-            exp = list(imu._ca._p3) + list(imu._cg._p3) + list(tg[0]) + list(tg[1])
+            exp = list(imu._ca.burst3) + list(imu._cg.burst3) + list(tg[0]) + list(tg[1])
             assert next(lines) == "EXT %d %d %s" % (i, t, " ".join(str(v) for v in exp)), (interp.name, i, t)
         n += 1
     assert n == len(cases)
