@@ -40,3 +40,15 @@ def interp(request, _close_interps):
     per session: interp.run(code, mounts=(), paths=()) -> stdout, raising on a Python error; interp.name.
     One interpreter only: @pytest.mark.parametrize("interp", ["an385"], indirect=True)."""
     return _interps.get(request.param)
+
+
+import seeds as _seeds  # noqa: E402  (host_tests/helpers/seeds.py)
+
+
+def pytest_report_header(config):
+    return _seeds.note()
+
+
+def pytest_terminal_summary(terminalreporter):
+    # at the end too (pytest -q shows no header): the seed to repeat a failure with
+    terminalreporter.write_line(_seeds.note())

@@ -11,12 +11,16 @@ subprocesses. Unwritable outputs, bad option values and wrong-kind files are cov
 
 import json
 import os
+import pathlib
 import random
+import re
+import shutil
 import subprocess
 import sys
 
 import numpy as np
 import pytest
+import seeds
 import simgap_synth
 from paths import REPO
 
@@ -27,7 +31,7 @@ from tools.sim.analog_gyro_sim import AnalogGyroSim
 from tools.simgap.convert import PAN_REL, TOFU_REL
 from tools.simgap.logio import write_log
 
-SEEDS = (1, 2, 3)
+SEEDS = tuple(seeds.seeds("bad_input", 3))  # drawn per run: TEMPCOMP_SEED repeats them
 
 
 def _strict(text):
@@ -213,19 +217,38 @@ TARGETS = {
 # -- damage -----------------------------------------------------------------------------------
 
 def _data_lines(b):
+    """(indices of the data lines: after the '#' metadata and the header, not blank; lines)."""
     lines = b.split(b"\n")
-    return [i for i, ln in enumerate(lines) if i > 0 and ln and not ln.startswith(b"#")], lines
+    head = next(i for i, ln in enumerate(lines) if not ln.startswith(b"#") and ln.strip())
+    return [i for i, ln in enumerate(lines) if i > head and ln.strip()], lines
+
+
+def _sep(line):
+    return b"\t" if b"\t" in line else b","
 
 
 def _cells(line):
     return [m for m in range(len(line)) if line[m:m + 1] in (b",", b"\t")]
 
 
+def _is_number(cell):
+    return _NUMBER.match(cell.strip().decode("ascii", "replace")) is not None
+
+
 def damage(kind, b, rng):
-    """(damaged bytes, True when the damage is on a line a message can name)."""
+    """(damaged bytes, True when the damage is on a line a message can name). Every kind changes
+    the file: a kind that needs a cell picks a line that has one."""
     if kind == "truncate":
         cut = [i for i in range(1, len(b)) if b[i - 1:i] not in (b"\n",)]
         return b[:rng.choice(cut)], False
+    if kind == "cut_cell":  # the file ends inside its last number: 1053.246 -> 1053 (a whole-looking row)
+        idx, lines = _data_lines(b)
+
+        def ends(ln):  # cuts after a digit that a digit or a point follows
+            return [m for m in range(1, len(ln)) if ln[m - 1:m].isdigit() and ln[m:m + 1] in b"0123456789."]
+
+        i = [i for i in idx if ends(lines[i])][-1]
+        return b"\n".join(lines[:i] + [lines[i][:rng.choice(ends(lines[i]))]]), False
     if kind == "flip":
         b = bytearray(b)
         for _ in range(rng.randint(1, 3)):
@@ -233,23 +256,19 @@ def damage(kind, b, rng):
         return bytes(b), False
     if kind == "delete_cell":
         idx, lines = _data_lines(b)
-        i = rng.choice(idx)
+        i = rng.choice([i for i in idx if _cells(lines[i])])
         seps = _cells(lines[i])
-        if not seps:
-            return b, False
         s = rng.choice(seps)
-        nxt = [m for m in _cells(lines[i]) if m > s]
+        nxt = [m for m in seps if m > s]
         lines[i] = lines[i][:s] + (lines[i][nxt[0]:] if nxt else b"")
         return b"\n".join(lines), True
     if kind in ("big", "nan"):
         idx, lines = _data_lines(b)
-        i = rng.choice(idx)
-        parts = lines[i].split(b"\t" if b"\t" in lines[i] else b",")
-        nums = [k for k, p in enumerate(parts) if p.strip().lstrip(b"-").replace(b".", b"").isdigit()]
-        if not nums:
-            return b, False
+        i = rng.choice([i for i in idx if any(_is_number(p) for p in lines[i].split(_sep(lines[i])))])
+        parts = lines[i].split(_sep(lines[i]))
+        nums = [k for k, p in enumerate(parts) if _is_number(p)]
         parts[rng.choice(nums)] = b"1e308" if kind == "big" else b"nan"
-        lines[i] = (b"\t" if b"\t" in lines[i] else b",").join(parts)
+        lines[i] = _sep(lines[i]).join(parts)
         return b"\n".join(lines), True
     if kind == "utf16":
         return b.decode("utf-8").encode("utf-16"), True
@@ -271,14 +290,125 @@ def damage(kind, b, rng):
         return bytes(rng.randrange(256) for _ in range(300)), False
     if kind == "empty":
         return b"", False
-    if kind == "header_only":
-        return b.split(b"\n")[0] + b"\n", False
+    if kind == "header_only":  # the metadata and the header line, no data
+        lines = b.split(b"\n")
+        head = next(i for i, ln in enumerate(lines) if not ln.startswith(b"#") and ln.strip())
+        return b"\n".join(lines[:head + 1]) + b"\n", False
     raise ValueError(kind)
 
 
-TEXT_KINDS = [(k, s) for k in ("truncate", "flip", "delete_cell", "big", "nan", "nul", "latin1") for s in SEEDS]
-TEXT_KINDS += [(k, 0) for k in ("utf16", "bom", "crlf", "garbage", "empty", "header_only")]
-BIN_KINDS = [(k, s) for k in ("truncate", "flip") for s in SEEDS + (4, 5, 6)] + [("garbage", 0), ("empty", 0)]
+# -- what a successful run on damaged input must show -------------------------------------------
+
+# a decimal number as a person or a logger writes it: what float() takes beyond this ("1_3",
+# "infinity", other scripts' digits) is damage, not data
+_NUMBER = re.compile(r"^[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?$")
+_INT = re.compile(r"^[+-]?\d+$")
+LIMIT = 1e12  # the readers' "beyond any reading" (tools/fit/fastcsv.py, tools/simgap/logio.py)
+
+
+def _text_columns(good):
+    """Columns of the undamaged file that are not numbers (a unit id, an orientation label)."""
+    rows = _table(good)
+    if rows is None:
+        return set()
+    head, body = rows[1], rows[2]
+    return {j for j in range(len(head)) if any(not _NUMBER.match(r[j]) for r in body if j < len(r))}
+
+
+def _table(b):
+    """(comment lines, header cells, rows of stripped cells) of a delimited text file, split only
+    at \\n (or \\r\\n) and at the header's delimiter; None if it is not UTF-8 text."""
+    try:
+        s = b.decode("utf-8")
+    except UnicodeDecodeError:
+        return None
+    if s.startswith("\ufeff"):
+        s = s[1:]
+    lines = re.split(r"\r?\n", s)
+    if lines and lines[-1] == "":
+        lines.pop()
+    k = 0
+    while k < len(lines) and lines[k].startswith("#"):
+        k += 1
+    if k == len(lines):
+        return None
+    sep = "\t" if "\t" in lines[k] else ","
+    body = [[c.strip() for c in ln.split(sep)] for ln in lines[k + 1:] if ln.strip()]
+    return lines[:k], [c.strip() for c in lines[k].split(sep)], body, sep
+
+
+def canonical_table(b, text_cols):
+    """The damaged file as a strict reader of its format sees it, written plainly (one form per
+    number, no BOM, \\n): None when that reader refuses it (a row of another width, a cell that
+    is not a finite decimal number below LIMIT, a NUL or control character, not UTF-8)."""
+    t = _table(b)
+    if t is None:
+        return None
+    comments, head, body, sep = t
+    if not body or any("\x00" in c or not c.isprintable() for c in head):
+        return None
+    out = list(comments) + [sep.join(head)]
+    for r in body:
+        if len(r) != len(head):
+            return None
+        cells = []
+        for j, c in enumerate(r):
+            if j in text_cols:
+                if not c or not c.isprintable():
+                    return None
+                cells.append(c)
+            elif _INT.match(c):
+                cells.append(str(int(c)))
+            elif _NUMBER.match(c) and abs(float(c)) < LIMIT:
+                cells.append(repr(float(c)))
+            else:
+                return None
+        out.append(sep.join(cells))
+    return ("\n".join(out) + "\n").encode()
+
+
+def canonical_json(b):
+    def refuse(c):
+        raise ValueError(c)
+
+    def pairs(kv):
+        if len({k for k, _ in kv}) != len(kv):
+            raise ValueError("a key twice")
+        return dict(kv)
+
+    try:
+        obj = json.loads(b.decode("utf-8"), parse_constant=refuse, object_pairs_hook=pairs)
+    except ValueError:  # UnicodeDecodeError and json.JSONDecodeError are ValueErrors
+        return None
+    return (json.dumps(obj, indent=1) + "\n").encode()
+
+
+def snapshot(outputs, out, base):
+    """What a run produced (output files, stdout), with the test's directory taken out of it."""
+    def norm(data):
+        return data.replace(str(base).encode(), b"<tmp>")
+
+    got = {"stdout": norm(out.encode())}
+    for o in outputs:
+        o = pathlib.Path(o)
+        files = sorted(p for p in o.rglob("*") if p.is_file()) if o.is_dir() else [o] if o.exists() else []
+        for p in files:
+            got[str(p.relative_to(base))] = norm(p.read_bytes())
+    return got
+
+
+def clear(outputs):
+    for o in outputs:
+        if os.path.isdir(o):
+            shutil.rmtree(o)
+        elif os.path.exists(o):
+            os.remove(o)
+
+
+TEXT_KINDS = [(k, s) for k in ("truncate", "cut_cell", "flip", "delete_cell", "big", "nan", "nul", "latin1") for s in SEEDS]
+TEXT_KINDS += [(k, 0) for k in ("utf16", "bom", "crlf", "empty", "header_only")] + [("garbage", SEEDS[0])]
+BIN_KINDS = [(k, s) for k in ("truncate", "flip") for s in seeds.seeds("bad_input_binary", 6)]
+BIN_KINDS += [("garbage", SEEDS[0]), ("empty", 0)]
 CASES = [(t, k, s) for t, (text, _) in TARGETS.items() for k, s in (TEXT_KINDS if text else BIN_KINDS)]
 
 
@@ -306,26 +436,34 @@ def check_outcome(rc, out, err, named, outputs, need_line=False):
         assert not os.path.exists(o), "%s left behind after a failed run" % o
 
 
-_UNDAMAGED_WORKS = set()
+_UNDAMAGED = {}  # target -> what the undamaged input gives (snapshot)
+
+
+def canonical(target, good, bad):
+    """The damaged file as written plainly by a strict reader of its format, or None (refused)."""
+    if target in ("store-json2bin", "gap-model"):
+        return canonical_json(bad)
+    if not TARGETS[target][0]:
+        return None  # a binary store: no two ways of writing the same calibration
+    return canonical_table(bad, _text_columns(good))
 
 
 @pytest.mark.parametrize("target,kind,seed", CASES)
 def test_damaged_input(target, kind, seed, tmp_path, capsys):
+    """Damaged input gives the one-line error, or the undamaged input's result, or the result of
+    the data the damaged file holds: the same as for those data written plainly (a truncated
+    last cell 1053.246 -> 1053 must give the fit of 1053, not of the file before the damage nor
+    of a row dropped), and the damage must change the file (a no-op damage tests nothing)."""
     _, build = TARGETS[target]
     f, argv, outputs = build(tmp_path)
     good = f.read_bytes()
-    if target not in _UNDAMAGED_WORKS:  # once per command: the undamaged input works
+    if target not in _UNDAMAGED:  # once per command: the undamaged input works
         rc, out, err = run_front_door(argv, capsys)
         assert rc == 0, (target, "the undamaged input must work", err)
-        for o in outputs:
-            if os.path.isdir(o):
-                import shutil
-
-                shutil.rmtree(o)
-            elif os.path.exists(o):
-                os.remove(o)
-        _UNDAMAGED_WORKS.add(target)
+        _UNDAMAGED[target] = snapshot(outputs, out, tmp_path)
+        clear(outputs)
     bad, line_damage = damage(kind, good, random.Random(seed * 7919 + len(kind)))
+    assert bad != good, "%s damage left %s unchanged: this case tests nothing" % (kind, f.name)
     f.write_bytes(bad)
     rc, out, err = run_front_door(argv, capsys)
     # damage a line can show (a deleted cell, 1e308, NaN, a NUL, a non-UTF-8 byte) is named by line
@@ -333,6 +471,30 @@ def test_damaged_input(target, kind, seed, tmp_path, capsys):
     check_outcome(rc, out, err, f, outputs, need_line=need)
     if kind in ("bom", "crlf") and target not in ("store-json2bin",):
         assert rc == 0, (target, kind, err)
+    if rc != 0:
+        return
+    got = snapshot(outputs, out, tmp_path)
+    if got == _UNDAMAGED[target]:
+        return
+    assert kind not in ("bom", "crlf"), (target, kind, "a BOM or CRLF changed the result")
+    plain = canonical(target, good, bad)
+    assert plain is not None, (target, kind, "exit 0 with a result of its own on a file a strict reader "
+                               "refuses: %r" % _differs(good, bad))
+    clear(outputs)
+    f.write_bytes(plain)
+    rc2, out2, err2 = run_front_door(argv, capsys)
+    assert rc2 == 0, (target, kind, "the damaged file's data written plainly are refused", err2)
+    assert snapshot(outputs, out2, tmp_path) == got, (target, kind, "the result is not that of the data the "
+                                                      "damaged file holds: %r" % _differs(good, bad))
+
+
+def _differs(good, bad):
+    # the first damaged line, for the failure message
+    g, b = good.split(b"\n"), bad.split(b"\n")
+    for i, (x, y) in enumerate(zip(g, b)):
+        if x != y:
+            return "line %d: %r -> %r" % (i + 1, x[:80], y[:80])
+    return "%d lines -> %d lines" % (len(g), len(b))
 
 
 def test_the_fuzz_covers_every_file_reading_command():

@@ -1,6 +1,7 @@
 """The tree explains itself: every tools/ folder says what it is for, and the import rules between
 the roles hold (lib/ never imports the host; the diagnosis never sees how its benchmark is made);
-inside lib/, imports go one way (no cycles) and no module takes another's private names."""
+inside lib/, imports go one way (no cycles) and no module takes another's private names or reaches
+into another's objects for their private attributes."""
 import ast
 import pathlib
 
@@ -302,6 +303,174 @@ def test_the_lib_rules_catch_a_violation(tmp_path):
         "pkg/sub/__init__.py:2 reads pkg.low._helper",
         "pkg/sub/leaf.py:2 reads pkg.low._helper",
     ]
+
+
+# ---- lib/: no module reaches into another's objects -------------------------------------------
+# A private attribute (self._x, a _method, a class-level _NAME) is its module's business: when the
+# driver needs a Compensator's per-sample numbers, fixedpoint gives them a public name (burst3,
+# export()). Read statically: an obj._x read or written in a module that never defines _x itself,
+# while another lib module does. (When both define an _x of the same name the owner cannot be
+# told without types; that case is not flagged.)
+
+# A class may take methods from another module: tempcomp.augment installs its kernels' functions
+# (augment_pure.apply, augment_native.apply: module-level functions whose first parameter is self)
+# on Augmented when a model first needs them, so that a board holds only the kernel it runs.
+# Such a function is the class's own method, and its self._x is the class's: allowed when the
+# installing module defines _x, and flagged when nothing there does (a private renamed on one
+# side would otherwise break the other silently).
+
+
+# Known, and not yet fixed: the augmented model's set-up (augment.py) and its pure kernel's step on
+# a new reading (augment_pure.py) read fixedpoint's Compensator and Poly internals (48 reads on
+# 2026-11-27). Public methods for them in fixedpoint (tried: shape(), gains_into(), update_ints())
+# made fixedpoint.py's .py import keep 2.7 KB more (a new interned-name pool) and tempcomp.mlx90609
+# and tempcomp.augment no longer imported from .py on the AN385 (docs/ram.md). Only these reads
+# are excepted; the test below fails once they are gone, so that this list only shrinks.
+KNOWN_PRIVATE_READS = ("tempcomp/augment.py:", "tempcomp/augment_pure.py:")
+KNOWN_OWNER = "tempcomp.fixedpoint"
+
+
+def _known(b):
+    return b.startswith(KNOWN_PRIVATE_READS) and "(defined in " in b and KNOWN_OWNER in b.rsplit("(defined in ", 1)[1]
+
+
+def lib_private_attribute_owners(lib):
+    """{module: private attribute names it defines}: assigned on self, or a method or class
+    attribute in one of its classes."""
+    out = {}
+    for name, path in lib_modules(lib).items():
+        own = set()
+        for node in ast.walk(ast.parse(path.read_text(), str(path))):
+            if isinstance(node, ast.ClassDef):
+                for b in node.body:
+                    if isinstance(b, (ast.FunctionDef, ast.AsyncFunctionDef)) and _private(b.name):
+                        own.add(b.name)
+                    elif isinstance(b, ast.Assign):
+                        own.update(t.id for t in b.targets if isinstance(t, ast.Name) and _private(t.id))
+            elif (isinstance(node, ast.Attribute) and isinstance(node.ctx, ast.Store) and _private(node.attr)
+                  and isinstance(node.value, ast.Name) and node.value.id == "self"):
+                own.add(node.attr)
+        out[name] = own
+    return out
+
+
+def lib_installed_methods(lib):
+    """{module: modules that install its functions as methods of one of their classes}, from
+    assignments `Cls.name = module.function` (Cls a class of the installing module)."""
+    mods = lib_modules(lib)
+    bound = {}
+    for a, b, _, _, names in lib_imports(lib):
+        for al in names:
+            bound.setdefault(a, {})[al] = b
+    out = {}
+    for name, path in mods.items():
+        tree = ast.parse(path.read_text(), str(path))
+        classes = {n.name for n in tree.body if isinstance(n, ast.ClassDef)}
+        for node in ast.walk(tree):
+            if not isinstance(node, ast.Assign) or not isinstance(node.value, ast.Attribute):
+                continue
+            v = node.value
+            src = bound.get(name, {}).get(v.value.id) if isinstance(v.value, ast.Name) else None
+            for t in node.targets:
+                if (src and src != name and isinstance(t, ast.Attribute) and isinstance(t.value, ast.Name)
+                        and t.value.id in classes):
+                    out.setdefault(src, set()).add(name)
+    return out
+
+
+def _self_methods(tree):
+    """Module-level functions whose first parameter is self, and the nodes in them."""
+    for f in tree.body:
+        if isinstance(f, ast.FunctionDef) and f.args.args and f.args.args[0].arg == "self":
+            for node in ast.walk(f):
+                yield node
+
+
+def lib_private_attribute_reads(lib):
+    """'file:line reads|writes obj._x (defined in owner)' for every access in one lib module of a
+    private attribute that only other lib modules define; in a method installed from another module,
+    'reads self._x (not defined by its class in owner)' for a private its class does not have."""
+    mods = lib_modules(lib)
+    owners = lib_private_attribute_owners(lib)
+    hosts = lib_installed_methods(lib)
+    bad = []
+    for name, path in mods.items():
+        tree = ast.parse(path.read_text(), str(path))
+        installed = set()
+        if name in hosts:
+            own = set(owners[name]).union(*(owners[h] for h in hosts[name]))
+            for node in _self_methods(tree):
+                if (isinstance(node, ast.Attribute) and _private(node.attr) and isinstance(node.value, ast.Name)
+                        and node.value.id == "self"):
+                    installed.add(node)
+                    if node.attr not in own:
+                        bad.append("%s:%d %s %s (not defined by its class in %s)" % (
+                            path.relative_to(lib), node.lineno,
+                            "writes" if isinstance(node.ctx, ast.Store) else "reads", ast.unparse(node),
+                            ", ".join(sorted(hosts[name]))))
+        for node in ast.walk(tree):
+            if not (isinstance(node, ast.Attribute) and _private(node.attr)) or node.attr in owners[name]:
+                continue
+            if node in installed:
+                continue
+            others = sorted(m for m, own in owners.items() if m != name and node.attr in own)
+            if others:
+                bad.append("%s:%d %s %s (defined in %s)" % (
+                    path.relative_to(lib), node.lineno, "writes" if isinstance(node.ctx, ast.Store) else "reads",
+                    ast.unparse(node), ", ".join(others)))
+    return sorted(bad)
+
+
+def test_lib_modules_read_no_private_attributes_of_another():
+    bad = [b for b in lib_private_attribute_reads(ROOT / "lib") if not _known(b)]
+    assert not bad, "private attributes used across lib/ modules (give them a public name or a method in " \
+        "the module that owns them):\n  " + "\n  ".join(bad)
+
+
+def test_the_known_private_reads_are_still_there():
+    found = [b for b in lib_private_attribute_reads(ROOT / "lib") if _known(b)]
+    assert found, "no reads of %s internals left in %s: remove them from KNOWN_PRIVATE_READS" % (
+        KNOWN_OWNER, KNOWN_PRIVATE_READS)
+
+
+def test_the_augmented_models_kernels_are_its_installed_methods():
+    # what the rule above lets through, named: augment installs both kernels' functions on Augmented
+    hosts = lib_installed_methods(ROOT / "lib")
+    assert hosts.get("tempcomp.augment_pure") == {"tempcomp.augment"}
+    assert hosts.get("tempcomp.augment_native") == {"tempcomp.augment"}
+
+
+def test_the_private_attribute_rule_catches_a_violation(tmp_path):
+    pkg = tmp_path / "pkg"
+    pkg.mkdir()
+    (pkg / "__init__.py").write_text("")
+    (pkg / "core.py").write_text(
+        "class Comp:\n    _LIMIT = 3\n    def __init__(self):\n        self._p = [0]\n        self.public = 1\n"
+        "    def _step(self):\n        return self._p\n")
+    (pkg / "driver.py").write_text(
+        "from pkg.core import Comp\nclass Driver:\n    def __init__(self):\n        self._c = Comp()\n"
+        "    def read(self):\n        c = self._c\n        c._step()\n        c._p = c.public\n"
+        "        return c._p[0], Comp._LIMIT\n")
+    (pkg / "mixin.py").write_text("class Extra:\n    def more(self):\n        return self._c\n")
+    # methods installed on a class from another module: their self is that class's (_q, _go),
+    # a private the class lacks is flagged (_gone), and so is another object's (c._p, w._go)
+    (pkg / "kern.py").write_text(
+        "def run(self, c):\n    self._q = self._go()\n    return self._gone, c._p\n"
+        "def helper(w):\n    return w._go\n")
+    (pkg / "host.py").write_text(
+        "from pkg import kern\nclass Model:\n    def __init__(self):\n        self._q = 0\n"
+        "    def _go(self):\n        return 1\nModel.run = kern.run\n")
+    assert lib_private_attribute_reads(tmp_path) == [
+        "pkg/driver.py:7 reads c._step (defined in pkg.core)",
+        "pkg/driver.py:8 writes c._p (defined in pkg.core)",
+        "pkg/driver.py:9 reads Comp._LIMIT (defined in pkg.core)",
+        "pkg/driver.py:9 reads c._p (defined in pkg.core)",
+        "pkg/kern.py:3 reads c._p (defined in pkg.core)",
+        "pkg/kern.py:3 reads self._gone (not defined by its class in pkg.host)",
+        "pkg/kern.py:5 reads w._go (defined in pkg.host)",
+        "pkg/mixin.py:3 reads self._c (defined in pkg.driver)",
+    ]
+    assert lib_installed_methods(tmp_path) == {"pkg.kern": {"pkg.host"}}
 
 
 def readme_layers():

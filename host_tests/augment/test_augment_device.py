@@ -3,6 +3,7 @@
 float64 reference in tools/simgap/devmodel.py, and bit-identical to the same code on CPython."""
 import numpy as np
 import pytest
+import seeds
 from augsynth import OUT_SCALE, every_term_model, inputs
 
 from tempcomp import augment
@@ -62,7 +63,7 @@ def test_extreme_inputs_stay_small_ints_in_the_vm():
     # steps of the temperature across its whole input range, dt from 0 to hours
     m = every_term_model()
     n = 600
-    rng = np.random.default_rng(7)
+    rng = np.random.default_rng(seeds.seed("augment_device"))
     aug = augment.Augmented(m)
     t_lo, t_hi = aug.comp.t_in
     inp = {"t": rng.choice([t_lo - 500, t_lo, t_hi, t_hi + 500, 2500], n),
@@ -103,7 +104,7 @@ def test_bad_models_are_refused_by_name(change, words):
 
 def test_a_power_on_mid_log_restarts_filters_and_uptime_like_the_reference():
     m = every_term_model()
-    inp, _ = inputs(m, n=1200, seed=9)
+    inp, _ = inputs(m, n=1200, seed=seeds.seed("augment_device_inputs"))
     inp["starts"] = np.array([700])
     inp["dt_ms"][700] = 0
     F = devmodel.features(m, inp)

@@ -6,6 +6,7 @@ M3/M7 firmware moves a coefficient's last bits, not the output)."""
 import json
 
 import numpy as np
+import seeds
 from augsynth import OUT_SCALE, every_term_model, inputs
 
 from tools.simgap import devmodel
@@ -15,7 +16,7 @@ N = 150
 
 def test_every_term_heap_locked_and_precise_on(interp):
     m = every_term_model()
-    inp, F = inputs(m, n=N, seed=4)
+    inp, F = inputs(m, n=N, seed=seeds.seed("augment_firmware_inputs"))
     rows = np.column_stack([inp["t"], inp["dt_ms"], inp["raw"], inp["supply"], inp["acc"]]).tolist()
     out = interp.run("""
 import micropython

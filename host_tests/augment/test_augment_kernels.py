@@ -13,6 +13,7 @@ from array import array
 import numpy as np
 import pytest
 from augsynth import every_term_model, inputs
+from paths import skip_unless_ci
 
 from tempcomp import augment
 from tools import REPO
@@ -45,9 +46,9 @@ def test_the_three_kernels_share_one_layout():
     # the asm kernel's byte offsets: word index * 4 (the run block from its own base)
     blocks = {"_AXB4": "_AXB", "_AXS4": "_AXS", "_RUN4": "_SRC", "_TREC4": "_TREC", "_FREC4": "_FREC"}
     run = {"_SRC4", "_OUTP4", "_NS4", "_MODE4", "_STR4", "_ROFF4", "_AOFF4", "_DTR4", "_HASF4",
-           "_NHYP4", "_PHYP4", "_UPMAX4"}
+           "_NHYP4", "_PHYP4", "_UPMAX4", "_TC4", "_PTF4", "_DTI4"}
     axis = {"_GH4", "_GL4", "_B4", "_RHO4", "_DS4", "_ES4", "_FO4", "_AF4", "_OT4", "_GT4", "_CR4", "_Y04",
-            "_INV4", "_Y4", "_KM4", "_RAW4"}
+            "_INV4", "_Y4", "_KM4", "_RAW4", "_SOT4", "_SGT4", "_RS4", "_RR4"}
     checked = 0
     for k, v in thumb.items():
         if not k.endswith("4"):
@@ -278,7 +279,7 @@ def test_native_asm_viper_and_pure_agree_on(interp, scs):
 def test_native_and_pure_agree_on_the_virtual_pico(scs):
     why = picoctl.missing()
     if why:
-        pytest.skip("virtual Pico cannot run: " + why)
+        skip_unless_ci("virtual Pico cannot run: " + why)
     with picoctl.PicoInterp() as p:
         out = device_run(lambda code: p.run(code, timeout=1800), scs[-2:])
     assert "NATIVE tempcomp.augment_native_m0 True" in out  # the armv6m build, with its asm_thumb

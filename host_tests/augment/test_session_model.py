@@ -7,6 +7,7 @@ from array import array
 
 import augsynth
 import pytest
+import seeds
 
 from tempcomp import augment
 from tempcomp.session import Aborted, Session
@@ -18,7 +19,7 @@ from tools.simgap.diagnose import diagnose
 
 
 def mpu_board():
-    mpu = MPU6xxxSim("MPU-6500", seed=3, gyro_bias_dps=(1.0, 2.0, -3.0))
+    mpu = MPU6xxxSim("MPU-6500", seed=seeds.seed("session_model_part"), gyro_bias_dps=(1.0, 2.0, -3.0))
     return types.SimpleNamespace(i2c=lambda: SimI2C({0x68: mpu}))
 
 

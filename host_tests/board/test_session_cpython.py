@@ -7,6 +7,7 @@ import os
 import types
 
 import pytest
+import seeds
 
 from tempcomp.session import Aborted, Session, restore
 from tools.sim.analog_gyro_sim import AnalogGyroSim
@@ -18,7 +19,7 @@ BIAS = (1.0, 2.0, -3.0)  # deg/s at 25 degC, no temperature dependence
 
 
 def board(with_parts=True):
-    mpu = MPU6xxxSim("MPU-6500", seed=3, gyro_bias_dps=BIAS)
+    mpu = MPU6xxxSim("MPU-6500", seed=seeds.seed("session_part"), gyro_bias_dps=BIAS)
     spi, cs = on_simspi(MLX90609Sim(full_scale_dps=150))
     a = AnalogGyroSim(divider=2.0)
     devices = {0x68: mpu} if with_parts else {}

@@ -9,6 +9,7 @@ back and redoes the zero. The expected offsets come from the simulated part's tr
 import types
 
 import pytest
+import seeds
 
 from tempcomp import mpu6xxx
 from tempcomp.session import Aborted, Session
@@ -20,7 +21,7 @@ BIAS = (1.5, -2.0, 0.8)  # deg/s, inside every part's datasheet tolerance
 
 
 def board(part):
-    sim = MPU6xxxSim(part, seed=4, gyro_bias_dps=BIAS, gyro_noise_dps=0.02, accel_noise_g=0.002)
+    sim = MPU6xxxSim(part, seed=seeds.seed("session_faults_part"), gyro_bias_dps=BIAS, gyro_noise_dps=0.02, accel_noise_g=0.002)
     sim.place("+z")
     return types.SimpleNamespace(i2c=lambda: SimI2C({0x68: sim})), sim
 

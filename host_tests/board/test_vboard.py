@@ -177,7 +177,7 @@ def test_ctrl_c_interrupts_tight_loop_and_keeps_ram(board):
     line = Line(board.port)
     try:
         line.send(b"\x03")
-        out = line.read_until(b"\x04>", timeout=5)
+        out = line.read_until(b"\x04>")  # the helper's ceiling: under load the interrupt may take a while
         assert b"KeyboardInterrupt" in out
     finally:
         line.close()

@@ -24,6 +24,7 @@ import subprocess
 import time
 
 import pytest
+from paths import skip_unless_ci
 from vboard_line import NODE, SERVER, Line, VirtualBoard, proc_start, rss_kb
 
 HAVE_PROC = os.path.isdir("/proc/self")
@@ -255,7 +256,7 @@ def test_pid_file_and_log_are_not_written_through_links(tmp_path, board):
 
         why = picoctl.missing()
         if why:
-            pytest.skip("virtual Pico cannot run: " + why)
+            skip_unless_ci("virtual Pico cannot run: " + why)
     victim = tmp_path / "victim.txt"
     victim.write_text("precious\n")
     run = tmp_path / "run"

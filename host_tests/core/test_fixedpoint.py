@@ -73,8 +73,8 @@ def test_quick_division_is_exact_floor_within_bounds():
 
 def _bounded(comp):
     bind(comp, ["_gh", "_gl", "_b", "_s", "_half", "_mid", "_eo", "_eg", "_k", "_kmask", "_fq", "_fs", "_wg"])
-    if comp._p3 is not None:
-        bind(comp, ["_p3"])
+    if comp.burst3 is not None:
+        bind(comp, ["burst3"])
     if comp._q0 is not None:
         bind(comp, ["_q0", "_q1", "_q2"])  # the pure 3-axis path's numbers per axis
     for p in comp._sc + comp._off:
@@ -369,7 +369,7 @@ def test_three_axis_burst_path_stays_within_bounds_at_the_corners():
     offs = [[16000.0, 0.1], [-16000.0, -0.1], [0.0]]
     scs = [[1.0 / 250.0], [1.0 / 250.0, 1e-9], [1.0 / 200.0]]
     comp = _bounded(fp.Compensator(offs, scs, (-30000, 30000), out_scale=1.0))
-    assert comp._p3 is not None
+    assert comp.burst3 is not None
     out = [0, 0, 0]
     for t in (-30000, 0, 30000):
         comp.update(BInt(t))

@@ -99,8 +99,8 @@ def compensation_grid():
         imu._cg.update(t)
         ref._ca.update(t)
         ref._cg.update(t)
-        p = list(imu._ca._p3) + list(imu._cg._p3)
-        print("RT %d %d %s" % (t, p == list(ref._ca._p3) + list(ref._cg._p3), " ".join([str(v) for v in p])))
+        p = list(imu._ca.burst3) + list(imu._cg.burst3)
+        print("RT %d %d %s" % (t, p == list(ref._ca.burst3) + list(ref._cg.burst3), " ".join([str(v) for v in p])))
     for raw in (-32768, -12345, -1, 0, 1, 9999, 32767):
         print("TEMP %d %d" % (raw, imu.temp_c100(raw)))
 

@@ -6,7 +6,9 @@ import json
 
 import numpy as np
 import pytest
+import seeds
 from distributed import Client, LocalCluster
+from fleet_checks import check_flags
 
 from tools.fit import __main__ as fitcli
 from tools.fit import fleet
@@ -27,7 +29,7 @@ def cluster():
 @pytest.fixture(scope="module")
 def units_dir(tmp_path_factory):
     d = tmp_path_factory.mktemp("dask") / "units"
-    S.fleet_files(str(d), 12, np.random.default_rng(9), samples=10, cpg=CPG, outliers=(4,))
+    S.fleet_files(str(d), 12, np.random.default_rng(seeds.seed("fleet_dask_units")), samples=10, cpg=CPG, outliers=(4,))
     return d
 
 
@@ -50,7 +52,7 @@ def test_unit_column_sources_pickle_to_the_worker(cluster, tmp_path):
     _, client = cluster
     f = tmp_path / "line.csv"
     rows = ["unit,temp_c,ref_g,out_mg"]
-    rng = np.random.default_rng(2)
+    rng = np.random.default_rng(seeds.seed("fleet_dask_2"))
     for u in ("A7", "B2", "C9"):
         for t in (-40.0, 25.0, 85.0):
             for g in (-1.0, 1.0):
@@ -69,7 +71,8 @@ def test_command_line_on_the_cluster(cluster, units_dir, tmp_path, capsys):
     text, err = capsys.readouterr()
     assert rc == 0, err
     doc = json.loads(out.read_text())
-    assert len(doc["units"]) == 12 and doc["summary"]["outliers"] == ["unit-00004"]
+    assert len(doc["units"]) == 12
+    check_flags(doc["summary"], ["unit-00004"])
     assert "12 unit(s) fitted" in text
 
 

@@ -2,11 +2,14 @@
 
 import csv
 import json
+import os
+import re
 import subprocess
 import sys
 
 import numpy as np
 import pytest
+import seeds
 from paths import REPO
 
 from tempcomp import record
@@ -26,7 +29,7 @@ def _z(est, true, se):
 
 
 def test_sixpos_recovers_truth_within_statistical_error():
-    rng = np.random.default_rng(21)
+    rng = np.random.default_rng(seeds.seed("sixpos", 21))
     U = 400
     tr = S.truth(U, rng)
     raw = S.chamber(tr, TEMPS, S.SIX, 50, CPG, rng, noise_counts=6.0)
@@ -87,34 +90,52 @@ def _within_bounds(errs):
     return errs[0] < 1.0 and errs[1] < 5e-4 and errs[2] < 1e-3
 
 
+def _adi_nxp_counts():
+    """The counts docs/adi_nxp.md states for 120 random sets of 12 at 3 counts of noise."""
+    text = " ".join(open(os.path.join(REPO, "docs", "adi_nxp.md"), encoding="utf-8").read().split())
+    m = re.search(r"Over (\d+) random sets of 12 at 3 counts of noise, (\d+) were not flagged and all of those met "
+                  r"the test's bounds .*?; of the (\d+) flagged \((\d+) with a warning, (\d+) refused\), (\d+) missed "
+                  r"them \((\d+) of the warned, (\d+) of the refused", text)
+    assert m, "docs/adi_nxp.md no longer states the counts in the form this test reads"
+    keys = ("sets", "passed", "flagged", "warned", "refused", "missed", "missed_warned", "missed_refused")
+    return dict(zip(keys, (int(g) for g in m.groups())))
+
+
 @pytest.mark.parametrize("noise", [3.0, 0.0])
-def test_ellipsoid_random_orientations_pass_or_are_flagged(noise):
+def test_ellipsoid_random_orientations_pass_or_are_flagged(noise, monkeypatch):
     """12 random orientations per seed, 120 seeds: a fit that is not flagged meets the bounds;
-    one that misses them was warned about (naming orientations to add) or refused."""
-    passed = flagged = 0
-    missed_but_flagged = 0
+    one that misses them was warned about (naming orientations to add) or refused. A refused set
+    is fitted again with the refusal lifted, to count whether it would have missed (the counts
+    docs/adi_nxp.md gives are these, at 3 counts of noise)."""
+    got = dict(sets=120, passed=0, flagged=0, warned=0, refused=0, missed=0, missed_warned=0, missed_refused=0)
     for seed in range(120):
         try:
             out, warnings, errs, _ = _ellipsoid_case(seed, noise=noise)
         except FitError as e:
             assert "ellipsoid fit refused: orientation coverage" in str(e) and "up" in str(e)
-            flagged += 1
+            with monkeypatch.context() as m:
+                m.setattr(P, "COVERAGE_REFUSE", float("inf"))
+                _, _, errs, _ = _ellipsoid_case(seed, noise=noise)
+            got["refused"] += 1
+            got["missed_refused"] += not _within_bounds(errs)
             continue
         assert out["misalign_rad"] is None
         cov = [w for w in warnings if w.startswith("orientation coverage")]
         if cov:
             assert "add orientations with" in cov[0], cov
-            flagged += 1
-            missed_but_flagged += not _within_bounds(errs)
+            got["warned"] += 1
+            got["missed_warned"] += not _within_bounds(errs)
         else:
             assert _within_bounds(errs), (seed, errs)
-            passed += 1
-    print("noise %.0f: %d passed unflagged, %d flagged (%d of those missed the bounds)"
-          % (noise, passed, flagged, missed_but_flagged))
-    # not a blanket warning: 47 of these 120 random sets of 12 are good enough (two in five;
-    # random attitudes do crowd one side), and 31 of the 73 flagged ones do miss the bounds at
-    # 3 counts of noise
-    assert passed >= 40 and flagged >= 10
+            got["passed"] += 1
+    got["flagged"] = got["warned"] + got["refused"]
+    got["missed"] = got["missed_warned"] + got["missed_refused"]
+    print("noise %.0f: %s" % (noise, got))
+    # not a blanket warning: about two in five random sets of 12 are good enough (random
+    # attitudes do crowd one side)
+    assert got["passed"] >= 40 and got["flagged"] >= 10
+    if noise == 3.0:
+        assert got == _adi_nxp_counts()
 
 
 def test_ellipsoid_suggested_orientations_fix_the_fit():
@@ -168,7 +189,7 @@ LAB = ["+x", "-x", "+y", "-y", "+z", "-z"]
 
 
 def test_cli_csv_to_device(tmp_path):
-    rng = np.random.default_rng(5)
+    rng = np.random.default_rng(seeds.seed("sixpos", 5))
     tr = S.truth(1, rng, cross=0.008, rot=0.005)
     raw = S.chamber(tr, TEMPS, S.SIX, 20, CPG, rng, noise_counts=4.0)
     path = tmp_path / "acc.csv"
@@ -203,7 +224,7 @@ def test_cli_csv_to_device(tmp_path):
     ("label", "orientation 'up'"),
 ])
 def test_cli_bad_input(tmp_path, case, msg):
-    rng = np.random.default_rng(1)
+    rng = np.random.default_rng(seeds.seed("sixpos", 1))
     tr = S.truth(1, rng)
     temps = TEMPS
     raw = S.chamber(tr, TEMPS, S.SIX, 3, CPG, rng)
@@ -235,7 +256,7 @@ def test_cli_bad_input(tmp_path, case, msg):
 
 
 def test_batch_bad_input():
-    rng = np.random.default_rng(2)
+    rng = np.random.default_rng(seeds.seed("sixpos", 2))
     tr = S.truth(3, rng)
     raw = S.chamber(tr, TEMPS, S.SIX, 4, CPG, rng)
     with pytest.raises(FitError, match="saturated axis: unit 1"):
@@ -264,7 +285,7 @@ def test_batch_bad_input():
 
 
 def test_cross_axis_fixed_point_vs_float():
-    rng = np.random.default_rng(9)
+    rng = np.random.default_rng(seeds.seed("sixpos", 9))
     worst = 0.0
     for _ in range(100):
         E = rng.uniform(-0.06, 0.06, (3, 3))
@@ -272,9 +293,11 @@ def test_cross_axis_fixed_point_vs_float():
         for v in list(rng.integers(-(2**18) + 1, 2**18, (30, 3))) + [np.array([2**18 - 1, -(2**18) + 1, 2**18 - 1])]:
             out = [0, 0, 0]
             ca.apply([int(x) for x in v], out)
-            worst = max(worst, float(np.max(np.abs(np.array(out) - (v + E @ v)))))
+            err = float(np.max(np.abs(np.array(out) - (v + E @ v))))
+            worst = max(worst, err)
+            # 0.5 rounding + sum |v| x 0.5 unit of 2**-22 (docs/adi_nxp.md, tempcomp/crossaxis.py)
+            assert err <= 0.5 + float(np.sum(np.abs(v))) * 2.0**-23, (v, err)
     print("cross-axis worst error %.4f LSB" % worst)
-    assert worst < 0.9
     with pytest.raises(ValueError, match="outside"):
         CrossAxis([[0, 0.07, 0], [0, 0, 0], [0, 0, 0]])
 
@@ -313,7 +336,7 @@ def _device_error_mg(acc, ca, tr, rng, temps, dirs):
 
 
 def test_cross_axis_drift_is_followed_on_the_device():
-    tr, rng = _drift_unit(31)
+    tr, rng = _drift_unit(seeds.seed("sixpos_drift", 31))
     temps = np.array([-40.0, -10.0, 25.0, 55.0, 85.0])
     raw = S.chamber(tr, temps, S.SIX, 50, CPG, rng, noise_counts=4.0)
     mean, se = P.reduce_samples(raw)
@@ -343,7 +366,7 @@ def test_cross_axis_drift_is_followed_on_the_device():
 
 def test_cross_axis_law_fitted_over_many_units():
     # recovery of the drift per term, against the simulated truth (not the fit's own algebra)
-    rng = np.random.default_rng(4)
+    rng = np.random.default_rng(seeds.seed("sixpos", 4))
     tr = S.truth(200, rng, cross=0.008, rot=0.005, cross_tc=1e-4)
     temps = np.array([-40.0, 0.0, 25.0, 60.0, 85.0])
     raw = S.chamber(tr, temps, S.SIX, 40, CPG, rng, noise_counts=4.0)
@@ -400,7 +423,7 @@ def test_cross_record_round_trip_and_bad_records():
 def test_cross_axis_law_fixed_point_vs_float():
     """Worst error of update+apply against float64 (I + E(T)) v, T from the code, over the whole
     input range |v| < 2**18 and temperature codes across and beyond the span (held at the edges)."""
-    rng = np.random.default_rng(12)
+    rng = np.random.default_rng(seeds.seed("sixpos", 12))
     worst = worst14 = 0.0
     for _ in range(40):
         laws = [rng.uniform(-0.04, 0.04, 9), rng.uniform(-1.5e-4, 1.5e-4, 9), rng.uniform(-1e-6, 1e-6, 9),
@@ -415,14 +438,18 @@ def test_cross_axis_law_fixed_point_vs_float():
             E = sum(laws[k] * d ** k for k in range(deg + 1)).reshape(3, 3)
             vs = list(rng.integers(-(2**18) + 1, 2**18, (20, 3))) + [np.array([2**18 - 1, -(2**18) + 1, 2**18 - 1])]
             for v in vs:
-                out = [0, 0, 0]
-                ca.apply([int(x) for x in v], out)
-                worst = max(worst, float(np.max(np.abs(np.array(out) - (v + E @ v)))))
-                v14 = v >> 4
-                ca.apply([int(x) for x in v14], out)
-                worst14 = max(worst14, float(np.max(np.abs(np.array(out) - (v14 + E @ v14)))))
+                for w in (v, v >> 4):
+                    out = [0, 0, 0]
+                    ca.apply([int(x) for x in w], out)
+                    err = float(np.max(np.abs(np.array(out) - (w + E @ w))))
+                    # 0.5 rounding + sum |v| x 4 units of 2**-22 (Horner's rounding of the law;
+                    # 3.3 measured over 200 seeds): 1.25 LSB at full scale, 0.55 below 2**14
+                    assert err <= 0.5 + float(np.sum(np.abs(w))) * 2.0**-20, (w, err)
+                    if w is v:
+                        worst = max(worst, err)
+                    else:
+                        worst14 = max(worst14, err)
     print("cross-axis law worst error %.4f LSB (|v| < 2**18), %.4f LSB (|v| < 2**14)" % (worst, worst14))
-    assert worst < 0.8 and worst14 < 0.52
 
 
 def test_mpu6500_register_sim_cross_axis_drift_end_to_end(tmp_path):
@@ -435,7 +462,7 @@ def test_mpu6500_register_sim_cross_axis_drift_end_to_end(tmp_path):
 
     n0 = [[0.0, 0.008, -0.006], [0.005, 0.0, 0.004], [-0.007, 0.009, 0.0]]
     tc = [[0.0, 1e-4, -1e-4], [1e-4, 0.0, 1e-4], [-1e-4, -1e-4, 0.0]]
-    sim = MPU6xxxSim("MPU-6500", seed=5, accel_noise_g=0.001)
+    sim = MPU6xxxSim("MPU-6500", seed=seeds.seed("sixpos_sim", 5), accel_noise_g=0.001)
     sim.set_cross(n0, tc)
     sim.set_tc(accel=[(0.0004, 1e-5), (-0.0003, 0.0), (0.0002, -2e-5)])
     imu = MPU6xxx(SimI2C({0x68: sim}))
@@ -474,7 +501,7 @@ def test_mpu6500_register_sim_cross_axis_drift_end_to_end(tmp_path):
     acc = AN12760.from_record(ints, 16384, out_per_g=10000, **kw)
     law = CrossAxis.from_record(res["cross_record"], **kw)
     flat = CrossAxis(res["cross_correction"])
-    rng = np.random.default_rng(3)
+    rng = np.random.default_rng(seeds.seed("sixpos", 3))
     dirs = np.vstack([np.array(list(FACES.values())), rng.normal(size=(8, 3))])
     dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
     for t in (-40.0, 85.0):
@@ -516,7 +543,7 @@ def test_mpu_sim_cross_axis_stays_within_the_datasheet():
 
 def test_cli_ellipsoid_refuses_poor_coverage(tmp_path):
     # seed 49's twelve orientations crowd one hemisphere: exit status 2, one line naming them
-    rng = np.random.default_rng(49)
+    rng = np.random.default_rng(49)  # a set the check refuses (seed 49, as above)
     tr = S.truth(50, rng, rot=0.0)
     dirs = rng.normal(size=(12, 3))
     dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)

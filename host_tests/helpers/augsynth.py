@@ -8,6 +8,7 @@ from tools.simgap import devmodel
 from tools.simgap.logio import Log
 
 EFFECTS = ("temp_rate", "hysteresis", "drift", "supply", "g_sensitivity", "cross_axis")
+NONE = "none"  # make(NONE): the same sensor and programme with no effect at all
 SENS = np.array([16.4, 16.0, 16.2])  # LSB per dps at 25 degC
 
 
@@ -44,9 +45,10 @@ def _play(x, w):
 
 
 def make(effect, withheld=False, n=3000, dt=2.0, seed=0, sigma=1.5, still=None):
-    """A Log with the effect on axis x (and on the others where it is a cross effect); still=k
-    holds axis k's input at -60 dps throughout (like gravity on an accelerometer's axis)."""
-    seed = seed * 2 + int(withheld) + 10 * EFFECTS.index(effect)
+    """A Log with the effect on axis x (and on the others where it is a cross effect), or none
+    (effect NONE); still=k holds axis k's input at -60 dps throughout (like gravity on an
+    accelerometer's axis)."""
+    seed = seed * 2 + int(withheld) + 10 * (EFFECTS + (NONE,)).index(effect)
     rng = np.random.default_rng(seed)
     t, T = _profile(n, dt, seed, withheld)
     levels = np.array([-200, -60, 0, 60, 200.0])

@@ -1,7 +1,14 @@
 """The virtual board as a test drives it: its server as a child process (own port, flash and
-pid file) and the serial line as a plain socket (what a terminal sees)."""
+pid file) and the serial line as a plain socket (what a terminal sees).
 
+Every wait here is for an event (the banner's last line, a token on the line, the process's
+exit, the port accepting again), with a ceiling far above what it takes on a loaded machine
+(CEILING): a slow host makes a test slower, never a failure; only an event that never comes
+fails it."""
+
+import itertools
 import os
+import random
 import shutil
 import signal
 import socket
@@ -14,7 +21,8 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[2]
 SERVER = REPO / "tools" / "vboard" / "server.mjs"
 NODE = os.environ.get("NODE") or shutil.which("node") or "node"
-START_TIMEOUT = 15
+CEILING = 120  # seconds: the most any one event may take before the test fails
+START_TIMEOUT = CEILING
 BANNER_END = b'Type "help()" for more information.\r\n>>> '
 
 
@@ -68,13 +76,14 @@ class VirtualBoard:
     def log(self):
         return "".join(self.lines)
 
-    def mpremote(self, *args, timeout=30, check=True):
-        for _ in range(5):
+    def mpremote(self, *args, timeout=CEILING, check=True):
+        deadline = time.monotonic() + CEILING
+        while True:
             r = subprocess.run([sys.executable, "-m", "mpremote", "connect", self.url, *args],
                                capture_output=True, text=True, timeout=timeout)
             # not listening (yet): nothing was sent when mpremote could not connect, so running
-            # it again is safe
-            if "failed to access" not in r.stderr:
+            # it again is safe (up to CEILING)
+            if "failed to access" not in r.stderr or time.monotonic() > deadline:
                 break
             time.sleep(0.2)
         if check and r.returncode != 0:
@@ -85,30 +94,34 @@ class VirtualBoard:
     def kill(self):
         # A power cut: no chance to flush anything.
         self.proc.send_signal(signal.SIGKILL)
-        self.proc.wait(5)
+        self.proc.wait(CEILING)
 
     def stop(self):
         if self.proc and self.proc.poll() is None:
             self.proc.terminate()
             try:
-                self.proc.wait(5)
+                self.proc.wait(CEILING)
             except subprocess.TimeoutExpired:
                 self.proc.kill()
-                self.proc.wait(5)
+                self.proc.wait(CEILING)
+
+
+_SYNC = itertools.count(random.randrange(10**6, 10**7) * 10)
 
 
 class Line:
     """The serial line seen from a terminal: a plain socket."""
 
     def __init__(self, port):
-        # the board listens for its whole life; a previous client on its way out is waited for
-        self.sock = socket.create_connection(("127.0.0.1", port), timeout=5)
+        # the board listens for its whole life; a previous client on its way out is waited for.
+        # recv waits up to CEILING too: a reply (or the board closing the line) is an event
+        self.sock = socket.create_connection(("127.0.0.1", port), timeout=CEILING)
         self.buf = b""
 
     def send(self, data):
         self.sock.sendall(data)
 
-    def read_until(self, token, timeout=10):
+    def read_until(self, token, timeout=CEILING):
         deadline = time.monotonic() + timeout
         while token not in self.buf:
             left = deadline - time.monotonic()
@@ -137,12 +150,17 @@ class Line:
 
     def friendly_prompt(self):
         """Get to a fresh friendly-REPL prompt, whatever state the board was in
-        (a board that has just booted has already printed its banner)."""
+        (a board that has just booted has already printed its banner).
+
+        After the banner, an expression no one else types and its answer: whatever the board still
+        had to print (a late prompt, the echo of the Enter and Ctrl-C) comes before that answer and
+        goes with it, however slowly it arrives."""
         self.send(b"\r\x03\x02")
         self.read_until(BANNER_END)
-        while not self.quiet_for(0.3):
-            pass
-        assert self.buf.endswith(b">>> ") or not self.buf, self.buf
+        n = next(_SYNC)
+        self.send(b"%d+1\r" % n)
+        self.read_until(b"\r\n%d\r\n>>> " % (n + 1))
+        assert not self.buf, self.buf
         self.buf = b""
 
     def close(self):

@@ -12,6 +12,8 @@ import random
 import sys
 
 import pytest
+import seeds
+from paths import skip_unless_ci
 
 from tempcomp import fixedpoint as fp
 from tools import REPO
@@ -25,7 +27,7 @@ import vboard_sensors as truth  # noqa: E402  (the parts' constants; runs on CPy
 def pico():
     why = picoctl.missing()
     if why:
-        pytest.skip("virtual Pico cannot run: " + why)
+        skip_unless_ci("virtual Pico cannot run: " + why)
     p = picoctl.PicoInterp()
     yield p
     p.close()
@@ -164,14 +166,25 @@ SCS = [[131.0, 4e-4, -3e-8], [130.0, 2e-4], [132.5, -2e-4]]
 T_CAL = (-4000, 9000)
 
 
+def _exact(coeffs):
+    # each coefficient as the exact (num, den) pair of its nearest float32: the rp2 firmware's
+    # floats are single precision, so a decimal literal (0.009, -2e-7) is another number there
+    # than on CPython, and a burst drawn per run met the difference (a 1-LSB output at t=9000)
+    import numpy as np
+
+    return [[float(np.float32(c)).as_integer_ratio() for c in row] for row in coeffs]
+
+
 def test_kernels_bit_identical_to_pure_python_and_cpython_under_heap_lock(pico):
-    rng = random.Random(5)
+    # the same coefficients on both sides: CPython's integers are then the board's exactly
+    offs, scs = _exact(OFFS), _exact(SCS)
+    rng = random.Random(seeds.seed("pico_kernel_burst"))
     n = 64
     burst = bytes(rng.getrandbits(8) for _ in range(6 * n))
     temps = [-4000, 1234, 9000]
     want = []
     for t in temps:
-        c = fp.Compensator(OFFS, SCS, T_CAL, out_scale=1000.0)
+        c = fp.Compensator(offs, scs, T_CAL, out_scale=1000.0)
         c.update(t)
         out = [0] * (3 * n)
         c.apply_be16_n(burst, out, n)
@@ -216,7 +229,7 @@ for mode in (None, False):
         assert one == many == list(arr) == viewed
         res.append(many)
     print('RES', res)
-""" % (burst, n, OFFS, SCS, T_CAL, temps))
+""" % (burst, n, offs, scs, T_CAL, temps))
     assert values(out, "NATIVE") == [True, False]
     assert values(out, "ASM") == [True]
     native, pure = values(out, "RES")
@@ -300,27 +313,33 @@ for _ in range(40):
     assert worst <= 0.6, worst  # output LSB (1 mdps, 1 mg): the core's bound against float64
 
 
-def test_augmented_model_bit_identical_to_cpython_under_heap_lock(pico):
+def test_augmented_model_under_heap_lock_native_as_pure_within_float64_bound(pico):
     # the augmented model with every term on (host_tests/augment's model and inputs), as the
-    # library ships it today, on the M0+: heap-locked, the same integers as CPython's run of
-    # the same rows, and within the stated precision of float64
+    # library ships it today, on the M0+: heap-locked, the native kernels bit for bit with the
+    # pure path on the same board, and within the stated precision of float64. Not CPython's
+    # integers: the rp2 firmware's floats are single precision, and the model's set-up
+    # (divisions by the LSB sizes, the filters' exp tables) is float arithmetic, so a few
+    # outputs in a thousand come out 1 LSB from CPython's run (TEMPCOMP_SEED=448613, 104, 110;
+    # the Cortex-M firmware test, test_augment_firmware, checks the same bound for that reason)
     np = pytest.importorskip("numpy")
     import json
 
     from augsynth import OUT_SCALE, every_term_model, inputs
 
-    from tempcomp.augment import Augmented
     from tools.simgap import devmodel
 
     m = every_term_model()
-    inp, feats = inputs(m, n=60, seed=4)
+    inp, feats = inputs(m, n=60, seed=seeds.seed("pico_augment_inputs"))
     rows = np.column_stack([inp["t"], inp["dt_ms"], inp["raw"], inp["supply"], inp["acc"]]).astype(int).tolist()
     flat = [v for r in rows for v in r]  # t, dt_ms, raw x3, supply, acc x3 per row
     out = pico.run("""
 import micropython
 from array import array
+from tempcomp import augment
 from tempcomp.augment import Augmented
-ap = Augmented(%s).apply
+print('NATIVE', augment.use_native())
+M = %s
+ap = Augmented(M).apply
 rows = array('i', %r)
 n = len(rows) // 9
 res = array('i', bytes(12 * n))
@@ -341,15 +360,16 @@ try:
 finally:
     micropython.heap_unlock()
 print('RES', list(res))
+augment.use_native(False)
+ap = Augmented(M).apply
+span(0, n)
+print('PURE', list(res))
 """ % (json.dumps(m), flat))
+    assert values(out, "NATIVE") == [True], out
     (got,), = [values(out, "RES")]
-    a = Augmented(m)
-    want = []
-    for r in rows:
-        o = [0, 0, 0]
-        a.apply(r[0], r[2:5], o, r[1], r[5], r[6:9])
-        want += o
-    assert got == want  # bit for bit with CPython
+    (pure,), = [values(out, "PURE")]
+    assert got == pure  # the M0+'s native kernels, bit for bit with its pure path
+    assert len(got) == 3 * len(rows)
     ref = devmodel.compensate(m, inp, feats) * OUT_SCALE
     assert np.max(np.abs(np.array(got, dtype=float).reshape(-1, 3) - ref)) <= 1.5
 
@@ -366,7 +386,7 @@ def test_power_cuts_during_a_store_save_restore_old_or_new(pico):
     ref = picoctl.cut_sweep(pico.flash, STORE_SETUP, STORE_SAVE, STORE_CHECK, [])["reference"]
     ops, cycles = ref["ops"], ref["cycles"]
     assert ops and ref["check"].startswith("(4, 5, 6)")
-    rng = random.Random(23)
+    rng = random.Random(seeds.seed("pico_power_cuts"))
     cuts = [{"op": k, "frac": rng.random()} for k in range(len(ops))]
     cuts += [{"cycle": rng.randrange(ops[0]["start"], cycles)} for _ in range(3)]
     res = picoctl.cut_sweep(pico.flash, STORE_SETUP, STORE_SAVE, STORE_CHECK, cuts)

@@ -9,7 +9,8 @@ import os
 import subprocess
 
 import pytest
-from vboard_line import NODE, SERVER, VirtualBoard
+from paths import skip_unless_ci
+from vboard_line import CEILING, NODE, SERVER, VirtualBoard
 
 from tools.board import picoctl
 
@@ -18,7 +19,7 @@ from tools.board import picoctl
 def firmware():
     why = picoctl.missing()
     if why:
-        pytest.skip("virtual Pico cannot run: " + why)
+        skip_unless_ci("virtual Pico cannot run: " + why)
 
 
 def pico(run, **kw):
@@ -37,7 +38,7 @@ def test_world_socket_and_flash_image_are_not_followed(tmp_path):
     try:
         assert "exists and is not this user's socket: no world control" in b.log()
         assert "world control" not in "".join(x for x in b.lines if x.startswith("  "))
-        r = b.mpremote("exec", "print(1 + 1)", timeout=60)
+        r = b.mpremote("exec", "print(1 + 1)", timeout=CEILING)
         assert r.stdout.strip() == "2"
     finally:
         b.stop()
@@ -52,7 +53,7 @@ def test_world_socket_and_flash_image_are_not_followed(tmp_path):
     except RuntimeError:
         pass
     try:
-        assert b.proc.wait(60) != 0, b.log()
+        assert b.proc.wait(CEILING) != 0, b.log()
     finally:
         b.stop()
     assert "is a symbolic link: the flash image is not written through links" in b.log()
@@ -70,9 +71,9 @@ def test_stop_stops_only_the_pico_its_pid_file_names(tmp_path):
         assert json.loads(own.read_text())["pid"] == p.proc.pid
         assert (tmp_path / "pico" / "world.sock").exists()
         r = subprocess.run([NODE, str(SERVER), "--board", "pico", "--stop", "--pidfile", str(own)],
-                           capture_output=True, text=True, timeout=30)
+                           capture_output=True, text=True, timeout=CEILING)
         assert r.returncode == 0 and "stopped" in r.stdout, r.stdout + r.stderr
-        p.proc.wait(10)
+        p.proc.wait(CEILING)
         assert vm.proc.poll() is None
         assert vm.mpremote("exec", "print(6 * 7)").stdout.strip() == "42"
         assert not (tmp_path / "pico" / "world.sock").exists()

@@ -7,6 +7,7 @@ import sys
 
 import numpy as np
 import pytest
+import seeds
 from paths import REPO
 
 from tempcomp.adxrs import AnalogGyro, point
@@ -26,7 +27,7 @@ def lagrange(pts, x):
 
 
 def test_quadratic_through_matches_lagrange():
-    rng = np.random.default_rng(3)
+    rng = np.random.default_rng(seeds.seed("adxrs_3"))
     for _ in range(200):
         xs = np.sort(rng.uniform(1000, 4000, 3))
         if np.min(np.diff(xs)) < 50:
@@ -64,7 +65,7 @@ def test_fixed_point_three_point_vs_lagrange():
             rr = int(round(raw))
             want = (rr - v0) / s * 1000
             assert abs(g.rate_from(vt, rr) - want) <= 0.5625
-    rng = np.random.default_rng(4)
+    rng = np.random.default_rng(seeds.seed("adxrs_4"))
     P0 = list(zip(vt_codes, v0_codes))
     PS = list(zip(vt_codes, s_codes))
     worst = 0.0
@@ -91,7 +92,7 @@ def _calibrate(sim, g, temps=(-40, 25, 85), rate=200.0, n=300):
 
 
 def test_sim_three_point_beats_single_point():
-    sim = AnalogGyroSim(vref_mv=3300, divider=2.0, noise_mv=0.3, t_noise_mv=0.2, bits=12, seed=7)
+    sim = AnalogGyroSim(vref_mv=3300, divider=2.0, noise_mv=0.3, t_noise_mv=0.2, bits=12, seed=seeds.seed("adxrs_sim_7"))
     g3 = AnalogGyro(sim.rate, sim.temp, 3300, divider=2.0, t_smooth=4)
     g3.set_three_point(*_calibrate(sim, g3))
     g1 = AnalogGyro(sim.rate, sim.temp, 3300, divider=2.0)
@@ -170,7 +171,7 @@ def _chamber_csv(path, sim, temps, rates=(0.0, 200.0, -200.0), n=40):
 
 
 def test_host_fit_cli_to_device(tmp_path):
-    sim = AnalogGyroSim(vref_mv=3300, divider=2.0, noise_mv=0.5, t_noise_mv=0.3, seed=11)
+    sim = AnalogGyroSim(vref_mv=3300, divider=2.0, noise_mv=0.5, t_noise_mv=0.3, seed=seeds.seed("adxrs_sim_11"))
     path = tmp_path / "gyro.csv"
     _chamber_csv(path, sim, (-40, 25, 85))
     out = tmp_path / "gyro.json"

@@ -6,6 +6,7 @@ import sys
 
 import numpy as np
 import pytest
+import seeds
 from paths import REPO
 
 from tempcomp import record
@@ -161,7 +162,7 @@ def test_warnings_close_temperatures():
 
 def test_fixed_point_worst_error_vs_float():
     """Whole raw range x whole calibrated temperature range, cubic laws: worst error in LSB."""
-    rng = np.random.default_rng(5)
+    rng = np.random.default_rng(seeds.seed("an12760"))
     axes = [(35.0, (1.2, -0.004, 3e-5), 0.03, (-6e-4, 2e-6, -1e-8)),
             (-50.0, (-0.7, 0.002, 0.0), -0.02, (4e-4, 0.0, 0.0))]
     dev = AN12760(axes, 4096, (-40, 105), t_scale=1 / 340, t_offset=36.53, out_per_g=10000,

@@ -52,8 +52,9 @@ asm_thumb (tempcomp.augment_thumb, Thumb-1: Cortex-M0+ to M7); elsewhere the pur
 (``use_native(False)`` picks it). Work is
 done as rarely as its inputs change: the model's integers at set-up, the base gain and offset
 term, rho, the features of the reading alone (dT and products of them) with their terms, and the
-cross matrix when the reading changes (``_step``), the filters' steps alpha when dt changes,
-the rest per sample.
+cross matrix when the reading changes (``augment_pure.step``; the native kernels split it: the
+base's part in viper, the terms' part in the sample kernel, asm_thumb, on the first sample that
+sees the new reading), the filters' steps alpha when dt changes, the rest per sample.
 
 Fixed point (B = 2**30 is the small-int bound; every clamp is counted in ``clamped()``):
 
@@ -262,7 +263,7 @@ def unpack(v):
 # blocks, and the sections whose positions the header holds.
 _CL = const(0)  # clamps counted: features, raw codes, readings
 _XS = const(1)  # the sample's reading << 12
-_TS = const(2)  # the reading (step features)
+_TS = const(2)  # the reading the step features are for (native: the terms' step runs when it is not _TC)
 _SUPS = const(3)  # the supply reading
 _AS = const(4)  # the acceleration (3 words)
 _UPT = const(7)  # uptime, ms (saturates)
@@ -589,6 +590,7 @@ class Augmented:
         c.update(t0r if t_lo <= t0r <= t_hi else (t_lo + t_hi) // 2)
         w = [0] * _HDR
         w[_TC] = t_lo - 1
+        w[_TS] = t_lo - 1  # the native kernels run the terms' step when _TS differs from _TC
         w[_TLO] = t_lo
         w[_THI] = t_hi
         w[_DTC] = -1

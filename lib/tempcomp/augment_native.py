@@ -1,10 +1,11 @@
-"""Native kernel of ``tempcomp.augment``: an ``Augmented`` model's per-sample path and per-reading
-step in @micropython.viper, on the word array its set-up lays out, with the general sample's
-body in asm_thumb (``tempcomp.augment_thumb``) where the port has the inline assembler.
+"""Native kernel of ``tempcomp.augment``: an ``Augmented`` model's per-sample path and the base's
+per-reading step in @micropython.viper, on the word array its set-up lays out, with the general
+sample's body and the terms' per-reading step in asm_thumb (``tempcomp.augment_thumb``) where the
+port has the inline assembler.
 
 Imported by ``augment`` on first use where the interpreter has the viper emitter and 32-bit ints
 (MicroPython firmware on Cortex-M); elsewhere the import fails and augment's pure-Python kernel
-runs. The arithmetic is the pure kernel's (``Augmented._apply`` and ``_step``, ``_general``,
+runs. The arithmetic is the pure kernel's (``augment_pure.apply``, ``step``, ``_general``,
 ``fixedpoint.Compensator.update``), operation for operation: every intermediate is proven within
 +-2**30 there (augment's and fixedpoint's module notes), so 32-bit machine words never wrap and the
 results are bit-identical to Python's unbounded integers.
@@ -395,11 +396,12 @@ def apply_be16_n(self, t: int, buf, out, n: int, dt_ms, supply, acc):
 
 @micropython.viper
 def step(wp, t: int):
-    """augment.Augmented._step: what depends on the reading t alone (clamped already), with
-    fixedpoint.Compensator.update's arithmetic for the base (the _UREC records of augment._urec)."""
+    """The base's part of augment_pure.step: what depends on the reading t alone (clamped
+    already), with fixedpoint.Compensator.update's arithmetic (the _UREC records of
+    augment._urec). The terms' part (rho, the step features, their terms, the cross matrix) runs
+    in the general sample's kernel, when it sees _TS differ from _TC (augment_thumb's TSTEP)."""
     w = ptr32(wp)
     kb = w[_KB]
-    fl = w[_FL]
     xb = ptr32(int(w) + (_AXB << 2))
     ur = ptr32(int(w) + (w[_PUPD] << 2))
     ax = 3
@@ -542,95 +544,11 @@ def step(wp, t: int):
             xb[_GH] = g >> kb
             xb[_GL] = g & ((1 << kb) - 1)
             xb[_B] = b
-        if fl & _FRHO:
-            # rho = (G << s) * R / 2**26 (augment._mul26), G = gain * 2**(K+S) >> 2
-            a = (((xb[_GH] << kb) + xb[_GL]) >> 2) << xb[_RS]
-            b = xb[_RR]
-            ah = a >> 14
-            al = a & 0x3FFF
-            bh = b >> 14
-            bl = b & 0x3FFF
-            xb[_RHO] = 4 * ah * bh + ((ah * bl + al * bh + ((al * bl) >> 14)) >> 12)
         xb = ptr32(int(xb) + _AXS * 4)
         ur = ptr32(int(ur) + _UREC * 4)
         ax -= 1
     w[_TC] = t
-    if not (fl & _FGEN):
-        return
-    w[_TS] = t
-    n = w[_NTF]
-    rq = ptr32(int(w) + ((w[_PTF] + 4) << 2))
-    cl = 0
-    while n:
-        # dT and products of step features (_features' loop, inline: a call here costs 300
-        # instructions a reading)
-        a = w[rq[2] >> 2]
-        b = rq[3]
-        if rq[0] == _OSUBC:
-            v = a - b
-        else:
-            v = a * w[b >> 2]
-        b = rq[4]
-        if v > b:
-            v = b
-            cl += 1
-        elif v < 0 - b:
-            v = 0 - b
-            cl += 1
-        sh = rq[5]
-        if sh < 0:
-            v <<= 0 - sh
-        elif sh:
-            v = (v + (1 << (sh - 1))) >> sh
-            if v > _FMAX:
-                v = _FMAX
-            elif v < 0 - _FMAX:
-                v = 0 - _FMAX
-        w[rq[1] >> 2] = v
-        rq = ptr32(int(rq) + _FREC * 4)
-        n -= 1
-    w[_SCL] = cl
-    dtf = 0
-    if w[_DTI] >= 0:
-        dtf = w[w[_DTI]]
-    xb = ptr32(int(w) + (_AXB << 2))
-    ax = 3
-    while ax:
-        k = 0
-        if xb[_AF] & _ASTEPT:
-            k = 2
-        while k:
-            if k == 2:
-                rq = ptr32(int(w) + (xb[_SOT] << 2))
-            else:
-                rq = ptr32(int(w) + (xb[_SGT] << 2))
-            n = rq[0]
-            e = 0
-            while n:
-                f = w[rq[1] >> 2]
-                e += (rq[2] * f + ((rq[3] * f) >> 14)) >> 1
-                rq = ptr32(int(rq) + 12)
-                n -= 1
-            if k == 2:
-                xb[_DS] = e
-            else:
-                xb[_ES] = e
-            k -= 1
-        rq = ptr32(int(w) + (xb[_CR] << 2))
-        n = rq[0]
-        a = xb[_RHO]
-        ah = a >> 14
-        al = a & 0x3FFF
-        while n:
-            c = rq[3]
-            b = rq[2] + (((c >> 14) * dtf + (((c & 0x3FFF) * dtf) >> 14)) >> 1)
-            bh = b >> 14
-            bl = b & 0x3FFF
-            xb[_KM + rq[1]] = ah * bh + ((ah * bl + al * bh + ((al * bl) >> 14)) >> 14)
-            rq = ptr32(int(rq) + 12)
-            n -= 1
-        xb = ptr32(int(xb) + _AXS * 4)
-        ax -= 1
+
 
 def _vrun():
     # the viper run, a module of its own: only where there is no asm_thumb (or for the tests)

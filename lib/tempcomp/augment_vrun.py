@@ -1,8 +1,8 @@
 """The viper run of an ``Augmented`` model's general samples (``augment_thumb.run`` where the port
-has the inline assembler): each sample's raw codes, the uptime, drift_hyp's values, the filters'
-step, the features, the terms, per axis y0 and 1 / (1 + rho e), the cross-axis solve and the
-outputs, as ``augment._apply`` and ``augment._general`` do them, word for word (every
-intermediate within +-2**30 there, so 32-bit machine words never wrap).
+has the inline assembler): a new reading's terms step, then each sample's raw codes, the uptime,
+drift_hyp's values, the filters' step, the features, the terms, per axis y0 and 1 / (1 + rho e),
+the cross-axis solve and the outputs, as ``augment_pure.step`` and ``_general`` do them, word for
+word (every intermediate within +-2**30 there, so 32-bit machine words never wrap).
 
 A module of its own, imported by ``augment_native`` only where there is no asm_thumb (a viper-only
 port) or when a test asks for it (``augment_native.use_asm(False)``): on Cortex-M its code would
@@ -19,6 +19,7 @@ from micropython import const
 # augment's layout (the same names and values there; host_tests/augment checks they agree)
 _CL = const(0)
 _XS = const(1)
+_TS = const(2)
 _AS = const(4)
 _UPT = const(7)
 _MID = const(8)
@@ -48,6 +49,10 @@ _HASF = const(40)
 _NHYP = const(41)
 _PHYP = const(42)
 _UPMAX = const(43)
+_TC = const(44)
+_NTF = const(54)
+_PTF = const(55)
+_DTI = const(56)
 _AXB = const(62)
 _AXS = const(22)
 _GH = const(0)
@@ -60,6 +65,8 @@ _FO = const(6)
 _AF = const(7)
 _AGAIN = const(1)
 _AOFFS = const(2)
+_ACROSS = const(4)
+_ASTEPT = const(8)
 _OT = const(8)
 _GT = const(9)
 _CR = const(10)
@@ -68,6 +75,10 @@ _INV = const(12)
 _Y = const(13)
 _KM = const(14)
 _RAW = const(17)
+_SOT = const(18)
+_SGT = const(19)
+_RS = const(20)
+_RR = const(21)
 _TREC = const(30)
 _FREC = const(6)
 _OSUB = const(0)
@@ -83,6 +94,65 @@ def run(wp):
     """augment_thumb.run where the port has no inline assembler: a run of samples (the run
     block's), each as augment._general does it."""
     w = ptr32(wp)
+    t = w[_TC]
+    if w[_TS] != t:
+        # the terms' part of a new reading's step (augment_pure.step after the base, as
+        # augment_thumb's TSTEP): the step features, per axis rho, the step features' share of
+        # the terms, the cross matrix' row
+        w[_TS] = t
+        w[_SCL] = int(_features(wp, w[_NTF], w[_PTF]))
+        dtf = 0
+        if w[_DTI] >= 0:
+            dtf = w[w[_DTI]]
+        kb = w[_KB]
+        xb = ptr32(int(w) + (_AXB << 2))
+        ax = 3
+        while ax:
+            if xb[_AF] & (_AGAIN | _ACROSS):
+                # rho = (G << s) * R / 2**26 (augment_pure._mul26), G = gain * 2**(K+S) >> 2
+                a = (((xb[_GH] << kb) + xb[_GL]) >> 2) << xb[_RS]
+                b = xb[_RR]
+                ah = a >> 14
+                al = a & 0x3FFF
+                bh = b >> 14
+                bl = b & 0x3FFF
+                xb[_RHO] = 4 * ah * bh + ((ah * bl + al * bh + ((al * bl) >> 14)) >> 12)
+            k = 0
+            if xb[_AF] & _ASTEPT:
+                k = 2
+            while k:
+                if k == 2:
+                    q = ptr32(int(w) + (xb[_SOT] << 2))
+                else:
+                    q = ptr32(int(w) + (xb[_SGT] << 2))
+                n = q[0]
+                e = 0
+                while n:
+                    f = w[q[1] >> 2]
+                    e += (q[2] * f + ((q[3] * f) >> 14)) >> 1
+                    q = ptr32(int(q) + 12)
+                    n -= 1
+                if k == 2:
+                    xb[_DS] = e
+                else:
+                    xb[_ES] = e
+                k -= 1
+            if xb[_AF] & _ACROSS:
+                q = ptr32(int(w) + (xb[_CR] << 2))
+                n = q[0]
+                a = xb[_RHO]
+                ah = a >> 14
+                al = a & 0x3FFF
+                while n:
+                    c = q[3]
+                    b = q[2] + (((c >> 14) * dtf + (((c & 0x3FFF) * dtf) >> 14)) >> 1)
+                    bh = b >> 14
+                    bl = b & 0x3FFF
+                    xb[_KM + q[1]] = ah * bh + ((ah * bl + al * bh + ((al * bl) >> 14)) >> 14)
+                    q = ptr32(int(q) + 12)
+                    n -= 1
+            xb = ptr32(int(xb) + _AXS * 4)
+            ax -= 1
     while w[_NS]:
         w[_NS] = w[_NS] - 1
         sp = w[_SRC]

@@ -1,11 +1,12 @@
 """Thin bus adapters so drivers never care which port they run on: I2C here, SPI in
-``tempcomp.bus_spi`` (which stands on this module's ``lock``), so a board whose sensors are all on
-I2C never loads the SPI adapter (docs/ram.md).
+``tempcomp.bus_spi``, so a board whose sensors are all on I2C never loads the SPI adapter, and
+CircuitPython's busio in ``tempcomp.bus_busio``, so a MicroPython board never loads that
+(docs/ram.md).
 
 MicroPython's ``machine.I2C`` has ``readfrom_mem_into``/``writeto_mem``; CircuitPython's and
-Blinka's ``busio.I2C`` have only ``writeto``/``writeto_then_readfrom`` and need ``try_lock()``.
-The right methods are bound once in ``__init__``; after that a register read allocates nothing
-(buffers are the caller's or preallocated here).
+Blinka's ``busio.I2C`` have only ``writeto``/``writeto_then_readfrom`` and need ``try_lock()``
+(``tempcomp.bus_busio``). The right methods are bound once in ``__init__``; after that a
+register read allocates nothing (buffers are the caller's or preallocated here).
 
 Usage::
 
@@ -18,26 +19,6 @@ Errors: bus faults propagate as ``OSError`` (as both ports raise them); a bus th
 locked by someone else raises ``OSError`` naming the bus after a bounded wait.
 """
 
-try:
-    from micropython import const
-except ImportError:
-
-    def const(x):
-        return x
-
-
-_LOCK_TRIES = const(10000)
-_MAX_WRITE = const(32)
-
-
-def lock(bus):
-    """Take a CircuitPython/Blinka bus's lock, waiting a bounded time (OSError naming the bus)."""
-    n = 0
-    while not bus.try_lock():
-        n += 1
-        if n >= _LOCK_TRIES:
-            raise OSError("bus %r stayed locked by another user" % (bus,))
-
 
 class I2CDevice:
     """Register access to one I2C address on a machine.I2C or busio.I2C bus."""
@@ -48,13 +29,15 @@ class I2CDevice:
         self.bus = bus
         self.address = address
         self._reg = bytearray(1)
-        self._wbuf = bytearray(_MAX_WRITE + 1)
         if hasattr(bus, "readfrom_mem_into"):
             self.read_into = self._mp_read_into
             self.write = self._mp_write
         elif hasattr(bus, "writeto_then_readfrom"):
-            self.read_into = self._cp_read_into
-            self.write = self._cp_write
+            from tempcomp.bus_busio import Registers
+
+            r = Registers(bus, address)
+            self.read_into = r.read_into
+            self.write = r.write
         else:
             raise TypeError("%r is not an I2C bus (needs readfrom_mem_into or writeto_then_readfrom)" % (bus,))
 
@@ -63,27 +46,6 @@ class I2CDevice:
 
     def _mp_write(self, reg, buf):
         self.bus.writeto_mem(self.address, reg, buf)
-
-    def _cp_read_into(self, reg, buf):
-        self._reg[0] = reg
-        lock(self.bus)
-        try:
-            self.bus.writeto_then_readfrom(self.address, self._reg, buf)
-        finally:
-            self.bus.unlock()
-
-    def _cp_write(self, reg, buf):
-        n = len(buf)
-        if n > _MAX_WRITE:
-            raise ValueError("write of %d bytes exceeds %d" % (n, _MAX_WRITE))
-        w = self._wbuf
-        w[0] = reg
-        w[1 : n + 1] = buf
-        lock(self.bus)
-        try:
-            self.bus.writeto(self.address, w, end=n + 1)
-        finally:
-            self.bus.unlock()
 
     def read_u8(self, reg):
         """One register byte (allocation-free)."""

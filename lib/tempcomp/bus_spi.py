@@ -1,7 +1,7 @@
 """The SPI adapter: chip-select framed full-duplex exchanges on machine.SPI or busio.SPI.
 
-Beside ``tempcomp.bus`` (the I2C adapter), on its ``lock``; loaded by the drivers of SPI parts
-(``tempcomp.mlx90609``) only. After ``__init__`` an exchange allocates nothing (the buffers are
+Beside ``tempcomp.bus`` (the I2C adapter); on ``tempcomp.bus_busio``'s ``lock`` for a busio.SPI
+(loaded only then); loaded by the drivers of SPI parts (``tempcomp.mlx90609``) only. After ``__init__`` an exchange allocates nothing (the buffers are
 the caller's).
 
 Usage::
@@ -13,9 +13,6 @@ Usage::
 Errors: bus faults propagate as ``OSError``; a bus that stays locked by someone else raises
 ``OSError`` naming the bus after a bounded wait.
 """
-
-from tempcomp.bus import lock
-
 
 class SPIDevice:
     """Chip-select framed full-duplex exchanges on a machine.SPI or busio.SPI bus.
@@ -32,7 +29,11 @@ class SPIDevice:
         self.baudrate = baudrate
         self.polarity = polarity
         self.phase = phase
-        self._cp = hasattr(bus, "try_lock")
+        self._lock = None
+        if hasattr(bus, "try_lock"):  # busio.SPI
+            from tempcomp.bus_busio import lock
+
+            self._lock = lock
         if hasattr(cs, "switch_to_output"):  # digitalio.DigitalInOut
             cs.switch_to_output(value=True)
             self._select = self._dio_select
@@ -51,8 +52,8 @@ class SPIDevice:
     def exchange(self, out, into):
         """Send out while receiving into (same length) with CS held low."""
         bus = self.bus
-        if self._cp:
-            lock(bus)
+        if self._lock is not None:
+            self._lock(bus)
             try:
                 bus.configure(baudrate=self.baudrate, polarity=self.polarity, phase=self.phase)
                 self._select(0)

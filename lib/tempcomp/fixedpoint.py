@@ -207,7 +207,7 @@ def _check_coeffs(name, coeffs):
     if n < 1 or n > _MAX_DEGREE + 1:
         raise ValueError("%s: degree %d not supported (0..%d)" % (name, n - 1, _MAX_DEGREE))
     for c in coeffs:
-        c = _fl(c)
+        c = to_float(c)
         if c != c or c in (float("inf"), float("-inf")):
             raise ValueError("%s: coefficient %r is not finite" % (name, c))
 
@@ -229,7 +229,7 @@ class Poly:
         while (1 << h) < half:
             h += 1
         # coefficients of x = (t - mid) / 2**h, so |x| <= 1 over the range
-        fc = [_fl(c) for c in coeffs]
+        fc = [to_float(c) for c in coeffs]
         fc[0] -= sub
         b = [v / div for v in shift_basis(fc, t_ref, mid)]
         self.t_range = (t_lo, t_hi)
@@ -390,7 +390,13 @@ def _exact_float(x):
     return int(x), e
 
 
-def _gcd(a, b):
+# The exact-coefficient helpers, public for the modules that hand this one (num, den) pairs
+# (tempcomp.mpu6xxx_tc's exact fit): the gcd that reduces a pair, a float's exact ratio, and a
+# pair's float value.
+
+
+def gcd(a, b):
+    """Greatest common divisor of two ints (non-negative)."""
     a = abs(a)
     b = abs(b)
     while b:
@@ -398,8 +404,8 @@ def _gcd(a, b):
     return a
 
 
-def _ratio(c):
-    # a coefficient as an exact (num, den) pair, den > 0: a float is the binary fraction it is
+def ratio(c):
+    """A coefficient as an exact (num, den) pair, den > 0: a float is the binary fraction it is."""
     if type(c) is tuple:
         return c
     if type(c) is int:
@@ -408,7 +414,7 @@ def _ratio(c):
     return (m, 1 << -e)
 
 
-def _fl(c):
+def to_float(c):
     """Float value of a coefficient: a number, or an exact pair (num, den) of ints, den > 0.
 
     Every coefficient the set-up takes may be such a pair (BiasModel's exact fits): the integers
@@ -466,13 +472,13 @@ def _exact_mid(coeffs, t_ref, mid, div, sub):
     if t_ref != int(t_ref):
         return None
     d = mid - int(t_ref)
-    rs = [_ratio(c) for c in coeffs]
-    dn, dd = _ratio(div)
+    rs = [ratio(c) for c in coeffs]
+    dn, dd = ratio(div)
     if dn <= 0:
         return None
     q = 1
     for _, r in rs:
-        q = q * r // _gcd(q, r)
+        q = q * r // gcd(q, r)
     m = [c * (q // r) for c, r in rs]
     m[0] -= sub * q
     out = []
@@ -514,6 +520,12 @@ class Compensator:
     raw LSB per physical unit), each a number or an exact (num, den) pair of ints. t_cal: calibrated span of the reading; t_in: the readings the
     bounds are proven for (default: t_cal with CLAMP, t_cal widened by half its span with
     EXTRAPOLATE). raw_range: the raw codes (at most 65536 of them, signed or unsigned).
+
+    ``burst3``: for 3 signed int16 axes, the 11 numbers the unrolled burst path reads (per axis
+    the gain's two limbs and the offset term with the rounding half; then K and S), kept current
+    by ``update()`` in the same list (or 32-bit array), so a driver may unpack it per sample
+    (``tempcomp.mpu6xxx.read_compensated``); None for other Compensators. ``export()`` gives
+    every number of the per-sample state, for a boot that resumes it without the set-up.
     """
 
     def __init__(
@@ -631,7 +643,7 @@ class Compensator:
         self.clamped = 0
         self._t = None
         # the unrolled 3-axis burst path needs signed int16 raw codes (raw range middle 0)
-        self._p3 = None
+        self.burst3 = None
         self._nk = None
         self._q0 = self._q1 = self._q2 = None
         if n == 3 and mid == 0:
@@ -639,17 +651,17 @@ class Compensator:
             if nk is not None:
                 # native kernels read the 11 numbers (and the batch's stride and output tag)
                 # from a 32-bit array; the pure path unpacks a list faster
-                self._p3 = nk.params()
-                self._nk = nk.kernels(self._p3, self._check_n)
+                self.burst3 = nk.params()
+                self._nk = nk.kernels(self.burst3, self._check_n)
             else:
-                self._p3 = [0] * 11
+                self.burst3 = [0] * 11
                 # _be16_3's numbers per axis (gain limbs, offset term minus half)
                 self._q0 = [0, 0, 0]
                 self._q1 = [0, 0, 0]
                 self._q2 = [0, 0, 0]
         if min(self._fd) >= 0:
             # every scale constant: update() is Horner only
-            self._fill_p3()
+            self._fill_burst3()
             self.update = self._update_fast
         self.update(self._t_lo)
         if mid != 0:
@@ -659,7 +671,7 @@ class Compensator:
         elif self._nk is not None:
             # closures over the parameter array: calling them allocates nothing
             self.apply_be16, self.apply_be16_n = self._nk
-        elif self._p3 is not None:
+        elif self.burst3 is not None:
             self.apply_be16 = self._be16_3
             self.apply_be16_n = self._be16_3n
 
@@ -782,10 +794,10 @@ class Compensator:
             # floor, not round: apply()'s floor of r*gl/2**15 errs the other way, so the two
             # truncations partly cancel
             self._b[k] = b
-        self._fill_p3()
+        self._fill_burst3()
 
-    def _fill_p3(self):
-        p = self._p3
+    def _fill_burst3(self):
+        p = self.burst3
         if p is not None:
             j = 0
             for k in range(3):
@@ -810,6 +822,16 @@ class Compensator:
                 q[1] = p[7]  # type: ignore[index]
                 q[2] = p[8]  # type: ignore[index]
 
+    def export(self):
+        """(t_lo, t_hi, fxm, fxl, fxs, half, k, s, gh, gl, fd, fs, fq): every number ``update()``
+        and the 3-axis burst path read, for 3 signed int16 axes whose scales do not vary with t;
+        None for any other Compensator. ``tempcomp.mpu6xxx_tc.compiled()`` saves them, and
+        ``tempcomp.mpu6xxx_rt`` resumes them without this module (the same integers)."""
+        if self.burst3 is None or min(self._fd) < 0:
+            return None
+        return (self._t_lo, self._t_hi, self._fxm, self._fxl, self._fxs, self._half, self._k, self._s,
+                tuple(self._gh), tuple(self._gl), tuple(self._fd), tuple(self._fs), tuple(self._fq))
+
     def _update_fast(self, t):
         # update() when every scale is constant: the offset terms by Horner (_set_fast's
         # polynomials, the same arithmetic as update()'s branch for them), mul_shift inline
@@ -830,7 +852,7 @@ class Compensator:
         fd = self._fd
         fs = self._fs
         bb = self._b
-        p = self._p3
+        p = self.burst3
         half = self._half
         n = self.axes
         k = 0
@@ -929,7 +951,7 @@ class Compensator:
     def _be16_3n(self, buf, out, n, stride=6):
         # apply_be16_n for the unrolled 3-axis case: _be16_3's arithmetic (and bound) per sample
         self._check_n(buf, out, n, stride)
-        g0, l0, b0, g1, l1, b1, g2, l2, b2, k, s = self._p3  # type: ignore[misc]  # set when bound
+        g0, l0, b0, g1, l1, b1, g2, l2, b2, k, s = self.burst3  # type: ignore[misc]  # set when bound
         i = 0
         j = 0
         m = 3 * n
@@ -1051,11 +1073,3 @@ def _gain_num(e, d):
     if e <= _VALUE_BITS:
         return div_pow2(1 << e, 0, d)
     return div_pow2(1 << _VALUE_BITS, e - _VALUE_BITS, d)
-
-
-# The exact-coefficient helpers, public for the modules that hand this one (num, den) pairs
-# (tempcomp.mpu6xxx_tc's exact fit): a float's exact ratio, the gcd that reduces a pair, and a
-# pair's float value. (Names given here, at the end, so the definitions above stay as they are.)
-ratio = _ratio
-gcd = _gcd
-to_float = _fl

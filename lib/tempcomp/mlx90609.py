@@ -42,9 +42,11 @@ except ImportError:
         return x
 
 
-# fixedpoint first: from .py, its compile (the largest source) needs blocks of ~2 KB, and on the
-# 140 KB Cortex-M3 heap it found none once the two bus adapters were compiled before it
-# (MemoryError; docs/ram.md, host_tests/interp/test_ram.py)
+# fixedpoint first: from .py its compile (the largest source, 41 KB) is the import's peak, and on
+# the 140 KB Cortex-M3 heap, with the files read over mpremote's mount (the RAM bench's route), it
+# found no free block once the SPI adapter was compiled before it (MemoryError; 4 KB to spare in
+# this order). Read in place as from flash, either order has over 25 KB to spare (docs/ram.md,
+# host_tests/interp/test_ram.py).
 from tempcomp.fixedpoint import EXTRAPOLATE, Compensator, quadratic_through
 
 # isort: split
@@ -346,11 +348,11 @@ class MLX90609:
         self._comp = None
         self._zro_q = None
         self.table = None
-        self._table_error = None
+        self.table_error = None  # why the EEPROM gave no table (a ValueError), None when it did
         try:
             table = decode_eeprom(self.cells)
         except ValueError as e:
-            self._table_error = e
+            self.table_error = e
         else:
             self.use_table(table)
 
@@ -426,13 +428,13 @@ class MLX90609:
         self._comp = comp
         self._zro_q = off
         self.table = table
-        self._table_error = None
+        self.table_error = None
         self.zro_shift = float(zro_shift)
         self._count = 0
 
     def _need_table(self):
         if self._comp is None:
-            raise ValueError(str(self._table_error) if self._table_error else "MLX90609: no table")
+            raise ValueError(str(self.table_error) if self.table_error else "MLX90609: no table")
         return self._comp
 
     def _table(self):

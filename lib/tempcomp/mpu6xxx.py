@@ -12,6 +12,7 @@ Usage (the board lying still on any face, any side up)::
     gyro, accel = imu.calibrate()    # captures ~1 s, writes and verifies the offsets
     imu.offsets()                    # what the part now holds: the same two tuples
     imu.apply(gyro, accel)           # at boot: write saved offsets (verified)
+    imu.written                      # the six words last written here (None before any)
 
 Units: gyro offset registers count 1/32.8 dps (the +-1000 dps unit) whatever the range; accel
 offset registers are 16-bit words in 2048 LSB/g (bits 15..1, 0.98 mg a step) whose bit 0 is
@@ -47,11 +48,10 @@ from tempcomp.mpu6xxx_parts import (
     TEMP_SENS,
     TEMP_ZERO,
     WHO_AM_I,
-    MPUError,
+    MPUError,  # noqa: F401  (re-exported: tempcomp.mpu6xxx.MPUError is what users catch)
     by_name,
     by_who_am_i,
     celsius100,
-    names,
     warn,
     zro_limit,
 )
@@ -64,28 +64,26 @@ except ImportError:
         return x
 
 
-# a millisecond clock for check(every_ms=): MicroPython's ticks, CircuitPython's supervisor
-# ticks (they wrap at 2**29), else the monotonic clock
+# a millisecond clock for check(every_ms=), bound once: MicroPython's ticks, CircuitPython's
+# supervisor ticks (they wrap at 2**29), else the monotonic clock (CPython). The fallbacks are
+# defined only where they are used: a MicroPython board never holds them.
 try:
-    import supervisor as _supervisor  # pyright: ignore[reportMissingImports]
+    from time import ticks_diff as _ticks_diff  # pyright: ignore[reportAssignmentType]
+    from time import ticks_ms as _ticks_ms
 except ImportError:
-    _supervisor = None
+    try:
+        from supervisor import ticks_ms as _ticks_ms  # pyright: ignore[reportMissingImports]
 
+        def _ticks_diff(a, b):
+            return ((a - b + 0x10000000) & 0x1FFFFFFF) - 0x10000000
 
-def _ticks_ms():
-    f = getattr(_time, "ticks_ms", None) or getattr(_supervisor, "ticks_ms", None)
-    if f is not None:
-        return f()
-    return int(_time.monotonic() * 1000)  # pyright: ignore[reportAttributeAccessIssue]
+    except ImportError:
 
+        def _ticks_ms():
+            return int(_time.monotonic() * 1000)  # pyright: ignore[reportAttributeAccessIssue]
 
-def _ticks_diff(a, b):
-    f = getattr(_time, "ticks_diff", None)
-    if f is not None:
-        return f(a, b)
-    if _supervisor is not None:
-        return ((a - b + 0x10000000) & 0x1FFFFFFF) - 0x10000000
-    return a - b
+        def _ticks_diff(a, b):
+            return a - b
 
 
 # Register map (RM-MPU-6000A / RM-MPU-9250): the registers only the driver uses; the capture's
@@ -123,20 +121,19 @@ class MPU6xxx:
         if part is None:
             row = by_who_am_i(who)
             if row is None:
-                raise MPUError(
-                    "no known MPU-6xxx part at I2C address 0x%02x: WHO_AM_I is 0x%02x; for a "
-                    "clone name the part it copies, e.g. part='MPU-6500' (known: %s)"
-                    % (address, who, ", ".join(names()))
-                )
+                from tempcomp.mpu6xxx_faults import unknown_part
+
+                raise unknown_part(address, who)
         else:
             row = by_name(part)
             if row is None:
-                raise ValueError("unknown part %r; known: %s" % (part, ", ".join(names())))
+                from tempcomp.mpu6xxx_faults import unknown_name
+
+                raise unknown_name(part)
             if row[WHO_AM_I] != who:
-                warn(
-                    "part at 0x%02x answers WHO_AM_I 0x%02x, not 0x%02x: driving it with the %s "
-                    "layout as asked" % (address, who, row[WHO_AM_I], row[NAME])
-                )
+                from tempcomp.mpu6xxx_faults import other_part
+
+                warn(other_part(address, who, row[WHO_AM_I], row[NAME]))
         self.part = row[NAME]
         self._row = row
         a0 = row[ACCEL_OFFS]
@@ -153,7 +150,7 @@ class MPU6xxx:
         self._tsens2 = 2 * row[TEMP_SENS]
         self._tzero = row[TEMP_ZERO]
         self._follow_t = None
-        self._target = None
+        self.written = None  # the six offset words last written here and verified (check() keeps them)
         self._checked = None  # ticks_ms of the last check(every_ms=...)
         self.trim_changes = 0  # offset registers the part changed by itself, found by check()
         # the accel offsets hold the factory trim after power-on: read it once, here
@@ -177,10 +174,9 @@ class MPU6xxx:
             if a == b:
                 return a
             a, b = b, a
-        raise MPUError(
-            "offset registers read differently %d times in a row (bus noise? check pull-ups and "
-            "wiring); nothing written" % (_READS + 1)
-        )
+        from tempcomp.mpu6xxx_faults import unsteady_offsets
+
+        raise unsteady_offsets(_READS + 1)
 
     def offsets(self):
         """((gx, gy, gz), (ax, ay, az)) the part holds: signed register values."""
@@ -197,9 +193,9 @@ class MPU6xxx:
         if b[0] != w[0] or b[1] != w[1]:
             self._dev.read_into(reg, b)  # a corrupted read-back is not a failed write: ask again
         if b[0] != w[0] or b[1] != w[1]:
-            raise MPUError(
-                "register 0x%02x reads back 0x%02x%02x after writing 0x%02x%02x" % (reg, b[0], b[1], w[0], w[1])
-            )
+            from tempcomp.mpu6xxx_faults import read_back
+
+            raise read_back(reg, b, w)
 
     def _write_offsets(self, words):
         # words: gyro x y z, accel x y z (signed). All or nothing: on any fault the registers
@@ -215,17 +211,15 @@ class MPU6xxx:
             for i in range(6):
                 if now[i] != words[i]:
                     done = 6
-                    raise MPUError(
-                        "offset register 0x%02x holds %d, not the %d written"
-                        % (self._oregs[i], now[i], words[i])
-                    )
+                    from tempcomp.mpu6xxx_faults import not_held
+
+                    raise not_held(self._oregs[i], now[i], words[i])
         except BaseException as e:
             bad = self._rollback(old, done)
             if bad is not None:
-                raise MPUError(
-                    "%s; restoring the previous offsets failed too (%s): power-cycle the part"
-                    % (e, bad)
-                )
+                from tempcomp.mpu6xxx_faults import rollback_failed
+
+                raise rollback_failed(e, bad)
             raise
 
     def _rollback(self, old, upto):
@@ -251,7 +245,7 @@ class MPU6xxx:
         for k in range(3):
             words[3 + k] = (a[k] & ~1) | (cur[3 + k] & 1)  # bit 0 is reserved: keep the part's
         self._write_offsets(words)
-        self._target = words
+        self.written = words
         return (tuple(words[:3]), tuple(words[3:]))
 
     def check(self, every_ms=None):
@@ -268,7 +262,7 @@ class MPU6xxx:
                 return 0
             self._checked = now
         cur = self._read_offsets()
-        want = self._target
+        want = self.written
         if want is None:
             want = cur[:3] + list(self.factory)
         n = 0
@@ -328,7 +322,7 @@ class MPU6xxx:
         words = c.calibrate(cur, self.factory, t, gyro_spread_dps, accel_spread_mg, max_tilt_mg, max_bias_dps,
                             max_turn_dps)
         self._write_offsets(words)
-        self._target = words
+        self.written = words
         return (tuple(words[:3]), tuple(words[3:]))
 
     def bias_point(self, packets=1000, settle_ms=50, gyro_spread_dps=5, accel_spread_mg=150, max_tilt_mg=150,
@@ -385,7 +379,9 @@ class MPU6xxx:
             if val is None:
                 continue
             if val not in opts:
-                raise ValueError("%s must be one of %r, got %r" % (what, opts, val))
+                from tempcomp.mpu6xxx_faults import not_one_of
+
+                raise not_one_of(what, opts, val)
             r = self._dev.read_u8(reg)
             self._write_u8(reg, (r & ~0x18) | opts.index(val) << 3)
 
@@ -410,6 +406,10 @@ class MPU6xxx:
             ca, cg = resume(model, check, ranges, offs)
         self._comp_set(ca, cg)
 
+    def compensating(self):
+        """True once compensate() has set up read_compensated() (software offset(T))."""
+        return self._cg is not None
+
     def _comp_set(self, ca, cg):
         # the Compensators read_compensated() uses; its temperature block starts again, so the
         # first reading after compensate() is applied at once
@@ -429,7 +429,9 @@ class MPU6xxx:
         ca = self._ca
         cg = self._cg
         if ca is None or cg is None:
-            raise ValueError("call compensate(model) first")
+            from tempcomp.mpu6xxx_faults import not_compensated
+
+            raise not_compensated()
         b = self._d14
         self._dev.read_into(_ACCEL_XOUT_H, b)
         t = ((b[6] << 8 | b[7]) ^ 0x8000) - 0x8000
@@ -450,20 +452,22 @@ class MPU6xxx:
                 # 'is': equal ints below 128 are one object (MicroPython: immediate; CPython:
                 # cached), so only a new value, a float or a bool is checked here, once
                 if type(n) is not int or not 0 < n <= _T_CNT:
-                    raise ValueError("temp_avg must be an int from 1 to 127, got %r" % (n,))
+                    from tempcomp.mpu6xxx_faults import bad_temp_avg
+
+                    raise bad_temp_avg(n)
                 self._tdiv = n
             self._tp = n
         # both Compensators' 3-axis numbers (fixedpoint's burst path: gain limbs, offset term
         # with the rounding half, K = 15, S), unrolled as in Compensator._be16_3 and with its
         # bound: |v*g| <= 2**28, |(v*l) >> 15| < 2**15, |c| <= 2**29 + 2**23
-        g0, l0, c0, g1, l1, c1, g2, l2, c2, k, s = ca._p3  # type: ignore[misc]  # 3 int16 axes
+        g0, l0, c0, g1, l1, c1, g2, l2, c2, k, s = ca.burst3  # type: ignore[misc]  # 3 int16 axes
         v = ((b[0] << 8 | b[1]) ^ 0x8000) - 0x8000
         out[0] = (v * g0 + ((v * l0) >> k) - c0) >> s
         v = ((b[2] << 8 | b[3]) ^ 0x8000) - 0x8000
         out[1] = (v * g1 + ((v * l1) >> k) - c1) >> s
         v = ((b[4] << 8 | b[5]) ^ 0x8000) - 0x8000
         out[2] = (v * g2 + ((v * l2) >> k) - c2) >> s
-        g0, l0, c0, g1, l1, c1, g2, l2, c2, k, s = cg._p3  # type: ignore[misc]
+        g0, l0, c0, g1, l1, c1, g2, l2, c2, k, s = cg.burst3  # type: ignore[misc]
         v = ((b[8] << 8 | b[9]) ^ 0x8000) - 0x8000
         out[3] = (v * g0 + ((v * l0) >> k) - c0) >> s
         v = ((b[10] << 8 | b[11]) ^ 0x8000) - 0x8000
@@ -480,7 +484,9 @@ class MPU6xxx:
         True when it wrote (verified, all-or-nothing) what ``model.registers(t)`` gives.
         """
         if self._dev.read_u8(_PWR_MGMT_1) & 0x40:  # SLEEP (RM-MPU-6000A 4.28)
-            raise MPUError("the part is asleep (PWR_MGMT_1.SLEEP): its temperature is stale")
+            from tempcomp.mpu6xxx_faults import asleep
+
+            raise asleep()
         t = self.temp_raw()
         last = self._follow_t
         if last is not None and abs(t - last) < step_c100 * self._tsens // 10000:
@@ -497,18 +503,19 @@ class MPU6xxx:
         The offsets are the ones last written (and verified) when there are any, so a trim the
         part changed by itself since (ICM-20602) is never saved; else what the part holds.
         """
-        o = list(self._target) if self._target is not None else self._read_offsets()
+        o = list(self.written) if self.written is not None else self._read_offsets()
         return [self.who_am_i] + o + list(self.factory)
 
     def apply_ints(self, ints):
         """Re-apply a to_ints() record (one call at boot); returns the offsets written."""
         if len(ints) != 10:
-            raise ValueError("an MPU6xxx record has 10 ints, got %d" % len(ints))
+            from tempcomp.mpu6xxx_faults import record_length
+
+            raise record_length(len(ints))
         if ints[0] != self.who_am_i:
-            raise ValueError(
-                "saved offsets belong to a part with WHO_AM_I 0x%02x, this one is 0x%02x"
-                % (ints[0], self.who_am_i)
-            )
+            from tempcomp.mpu6xxx_faults import other_who_am_i
+
+            raise other_who_am_i(ints[0], self.who_am_i)
         fac = tuple(ints[7:10])
         if fac != tuple(self.factory):
             held = tuple(self._read_offsets()[3:])
@@ -520,11 +527,13 @@ class MPU6xxx:
                 # the known fault: the part rewrote its Y trim (now, or when the record was
                 # made). The saved offsets are absolute words, right whatever the register held.
                 self.trim_changes += 1
-                warn("ICM-20602 accel y trim reads %d, saved factory value %d: the part changed it by "
-                     "itself (a known ICM-20602 fault); the saved offsets are written back, call "
-                     "check(every_ms=1000) from your loop to keep them" % (self.factory[1], fac[1]))
+                from tempcomp.mpu6xxx_faults import trim_rewritten
+
+                warn(trim_rewritten(self.factory[1], fac[1]))
             else:
-                warn("factory trim %r differs from the saved %r: a different part?" % (self.factory, fac))
+                from tempcomp.mpu6xxx_faults import other_factory
+
+                warn(other_factory(self.factory, fac))
         return self.apply(ints[1:4], ints[4:7])
 
     def save(self, store, name="mpu6xxx"):
@@ -544,9 +553,11 @@ class MPU6xxx:
 
 
 def _check3(what, v):
-    if len(v) != 3:
-        raise ValueError("%s needs 3 values, got %r" % (what, v))
+    ok = len(v) == 3
     for x in v:
-        if not isinstance(x, int) or not -32768 <= x <= 32767:
-            raise ValueError("%s values must be int16 register values, got %r" % (what, v))
+        ok = ok and isinstance(x, int) and -32768 <= x <= 32767
+    if not ok:
+        from tempcomp.mpu6xxx_faults import not_registers
+
+        raise not_registers(what, v)
     return v

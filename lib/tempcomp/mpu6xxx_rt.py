@@ -55,12 +55,12 @@ def model_hash(ints):
 
 
 class _State:
-    # what read_compensated() uses of a fixedpoint.Compensator (update, _p3, clamped), reading
+    # what read_compensated() uses of a fixedpoint.Compensator (update, burst3, clamped), reading
     # its numbers from the record itself (v: the loaded array, i: this Compensator's block)
     def __init__(self, v, i):
         self._v = v
         self._i = i
-        p = self._p3 = [0] * 11
+        p = self.burst3 = [0] * 11
         for k in range(3):
             p[3 * k] = v[i + _GH + k]
             p[3 * k + 1] = v[i + _GL + k]
@@ -85,7 +85,7 @@ class _State:
         self._t = t
         x = (t - v[i + _FXM]) << v[i + _FXL]
         hs = v[i + _FXS]
-        p = self._p3
+        p = self.burst3
         k = 0
         while k < 3:
             j = i + _FQ + 4 * k
@@ -124,16 +124,21 @@ def resume(v, model, ranges, offsets):
             ok = ok and -(1 << 29) <= v[i + _FQ + j] <= 1 << 29
         i += _PER
     if not ok:
-        raise ValueError("mpu_tcc: not a compiled offset(T) record")
+        from tempcomp.mpu6xxx_faults import tcc_malformed
+
+        raise tcc_malformed()
     if model is not None and model_hash(model) != v[1]:
-        raise ValueError("mpu_tcc was not built from this mpu_tc model (a save cut short?): call compensate(model)")
-    gdps, ag = ranges
-    if gdps != v[2] or ag != v[3]:
-        raise ValueError("mpu_tcc was built for +-%d dps, +-%d g; the part is set to +-%d dps, +-%d g: "
-                         "call compensate(model)" % (v[2], v[3], gdps, ag))
+        from tempcomp.mpu6xxx_faults import tcc_other_model
+
+        raise tcc_other_model()
+    if ranges[0] != v[2] or ranges[1] != v[3]:
+        from tempcomp.mpu6xxx_faults import tcc_other_ranges
+
+        raise tcc_other_ranges(v[2:4], ranges)
     for k in range(6):
         m = -1 if k < 3 else -2  # accel bit 0 is the part's, not ours
         if offsets[k] & m != v[4 + k] & m:
-            raise ValueError("mpu_tcc was built for other offset registers: restore() the offsets saved "
-                             "with it, or call compensate(model)")
+            from tempcomp.mpu6xxx_faults import tcc_other_offsets
+
+            raise tcc_other_offsets()
     return _State(v, _HEAD), _State(v, _HEAD + _PER)

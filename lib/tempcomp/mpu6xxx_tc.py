@@ -301,10 +301,12 @@ def compiled(imu, model_ints):
     cur = list(g) + list(a)
     out = [VERSION, model_hash(model_ints), ranges[0], ranges[1]] + cur
     for c in BiasModel.from_ints(model_ints).compensators(ranges, cur):
-        if c._p3 is None or min(c._fd) < 0:
+        e = c.export()
+        if e is None:
             raise ValueError("compiled(): needs 3 int16 axes with constant scales")
-        out += [c._t_lo, c._t_hi, c._fxm, c._fxl, c._fxs, c._half, c._k, c._s]
-        out += list(c._gh) + list(c._gl) + list(c._fd) + list(c._fs) + list(c._fq)
+        out += list(e[:8])
+        for v in e[8:]:  # gh gl fd fs (3 each), fq (12)
+            out += list(v)
     if len(out) != LENGTH:
         raise ValueError("compiled(): %d values, expected %d" % (len(out), LENGTH))
     return out

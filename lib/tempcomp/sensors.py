@@ -54,7 +54,6 @@ class Sensors:
         self.missing = {}  # type: dict
         self.restored = []  # type: list
         self.adxrs_mv_per_dps = float(getattr(board, "ADXRS_MV_PER_DPS", 6.0))
-        self._buf = [0] * 7
 
     def found(self):
         """Names of the parts that answered."""

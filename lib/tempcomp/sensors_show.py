@@ -8,6 +8,7 @@ ADXRS_NULL_MV = 2500.0  # datasheet null of an ADXRS6xx at 5 V: what an uncalibr
 _GYRO_REG_OUT = 4  # one gyro offset register LSB moves the +-250 dps output by 4 LSB
 _GYRO_LSB_DPS = 131.0
 _CHECK_MS = 1000  # read() re-checks the MPU's offset registers at most this often
+_BUF = [0] * 7  # read()'s MPU sample (one REPL read-out at a time)
 
 
 def temp_c(s):
@@ -31,13 +32,13 @@ def read(s, n=16):
     if mpu is not None:
         # compensated: offset(T) in software when a BiasModel is in use, else the output
         # with the calibrated offset registers (room-temperature calibration only)
-        b = s._buf
+        b = _BUF
         comp = [0.0, 0.0, 0.0]
         raw = [0, 0, 0]
-        if mpu._target is not None:  # offsets written here: keep them (ICM-20602 trim)
+        if mpu.written is not None:  # offsets written here: keep them (ICM-20602 trim)
             mpu.check(every_ms=_CHECK_MS)
         regs = mpu.offsets()[0]
-        tc = mpu._cg is not None  # software offset(T): a BiasModel, or its mpu_tcc record
+        tc = mpu.compensating()  # software offset(T): a BiasModel, or its mpu_tcc record
         for _ in range(n):
             if tc:
                 mpu.read_compensated(b)

@@ -407,7 +407,7 @@ class Session:
             h = mlx.health()
             t = mlx.table
             if t is None:
-                print("  MLX90609: no usable look-up table (%s); not calibrated here" % (mlx._table_error,))
+                print("  MLX90609: no usable look-up table (%s); not calibrated here" % (mlx.table_error,))
             else:
                 d = h["vote_disagreements"]
                 print("  MLX90609 EEPROM: VERSION %d, %d deg/s full scale, TC %d/%d/%d mV, %d voted bits "

@@ -28,7 +28,6 @@ from tempcomp.store_format import (
     Record,
     crc,
     entry_size,
-    pow2,
 )
 
 try:
@@ -57,6 +56,11 @@ def _check_int32(what, v):
     if not INT32_MIN <= v <= INT32_MAX:
         raise ValueError("%s = %d is outside int32 (-2147483648..2147483647)" % (what, v))
     return v
+
+
+def pow2(f):
+    """2**f as a float, for f of either sign."""
+    return float(1 << f) if f >= 0 else 1.0 / (1 << -f)
 
 
 def fixed(x, frac):

@@ -90,11 +90,6 @@ def crc(data):
     return _crc32(data) & 0xFFFFFFFF
 
 
-def pow2(f):
-    """2**f as a float, for f of either sign."""
-    return float(1 << f) if f >= 0 else 1.0 / (1 << -f)
-
-
 class Record:
     """One sensor's calibration as loaded: ``values`` array('i'), ``frac`` array('b'), metadata."""
 
@@ -116,7 +111,8 @@ class Record:
 
     def real(self, i):
         """Value i as a float: values[i] / 2**frac[i] (allocates: set-up time only)."""
-        return self.values[i] * pow2(-self.frac[i])
+        f = self.frac[i]
+        return self.values[i] / float(1 << f) if f >= 0 else self.values[i] * float(1 << -f)
 
     def __repr__(self):
         return "Record(%r, part=%r, serial=%r, kind=%d, values=%r, frac=%r, t=%d..%d unit %d, counter=%d, time=%d)" % (

@@ -8,13 +8,17 @@ bytes allocated under heap_lock() on the firmware; and the worst error against f
 (tools/simgap/devmodel.py) with every term on, in the VM."""
 
 import json
+import os
+import sys
 import time
 
 import numpy as np
 
+from tools import REPO
 from tools.bench.core import UNPACK_FLOOR
 from tools.firmware import interp, mpvm
-from tools.simgap import devmodel, replay
+from tools.simgap import devmodel, export, replay
+from tools.simgap.diagnose import diagnose
 
 BASE = {"t_lsb": 0.01, "t_off": 0.0, "raw_lsb": 1.0, "raw_range": [-32768, 32767], "out_scale": 100.0,
         "t0": 25.0, "t_cal": [-10.0, 60.0], "supply_lsb": 0.001, "supply0": 3.3, "acc_lsb": 0.001,
@@ -409,7 +413,35 @@ def firmware_costs(models, n=200):
     return res, spread, None
 
 
+def shrink(report):
+    """README's before/after table: on logs with one effect each from the test suite's generator
+    (host_tests/helpers/augsynth.py, written apart from the diagnosis), the board's withheld RMS of
+    the sim alone and of the augmented model (the device code replayed in the VM), axis x, and the
+    host's ratio (the diagnosis' own); host_tests/augment/test_export_replay.py recomputes them."""
+    sys.path.insert(0, os.path.join(REPO, "host_tests", "helpers"))
+    try:
+        import augsynth
+    finally:
+        sys.path.remove(os.path.join(REPO, "host_tests", "helpers"))
+    for effect in augsynth.EFFECTS:
+        tr, wh = augsynth.make(effect), augsynth.make(effect, withheld=True)
+        res, _ = diagnose(tr, wh)
+        exp = export.build(res, tr)
+        full, _ = replay.replay(exp, wh)
+        base, _ = replay.replay(exp, wh, base_only=True)
+        h = exp["host"]["rms"]
+        report("augment: %s log, board RMS of the sim alone, axis x (withheld)" % effect, base["rms"]["x"], "dps",
+               key="shrink_%s_base" % effect)
+        report("augment: %s log, board RMS of the augmented model, axis x" % effect, full["rms"]["x"], "dps",
+               key="shrink_%s_aug" % effect)
+        report("augment: %s log, board ratio augmented / sim alone, axis x" % effect,
+               full["rms"]["x"] / base["rms"]["x"], "", key="shrink_%s_ratio" % effect)
+        report("augment: %s log, the host's ratio (the diagnosis' withheld RMS), axis x" % effect,
+               h["augmented"]["x"] / h["base_only"]["x"], "", key="shrink_%s_host" % effect)
+
+
 def bench(report):
+    shrink(report)
     t0 = time.time()
     names = ["base"] + list(TERMS) + ["every term"]
     models = [("base", model([]))] + [(n, model([n])) for n in TERMS] + [("every term", model(list(TERMS)))]
@@ -417,39 +449,59 @@ def bench(report):
     if fw is not None:
         b, ev = fw["base"], fw["every term"]
         pl = b["plain"]
-        report("augment: plain Compensator.apply_be16 per 3-axis sample, into a list / an array('i') "
-               "(Cortex-M3 firmware)", "%d / %d" % (pl, b["plain_arr"]), "instructions")
-        report("augment: base model through the augmented path, reading unchanged", b["c"],
-               "instructions (%.2fx the plain sample, target <= 1.5; %d..%d over %d heap layouts)"
-               % (b["c"] / pl, spread["base"][0], spread["base"][1], len(PADS)))
-        report("augment: same, reading changing every sample", b["t"], "instructions")
-        report("augment: same, per sample of a burst of %d (plain apply_be16_n: %d)" % (BATCH, b["plain_b"]),
-               b["b"], "instructions")
-        report("augment: base model, float anchor (careful float code), reading unchanged / changing",
-               "%d / %d" % (b["float"], b["float_t"]), "instructions")
+        report("augment: plain Compensator.apply_be16 per 3-axis sample, into a list (Cortex-M3 firmware)", pl,
+               "instructions", key="m3_plain")
+        report("augment: same, into an array('i')", b["plain_arr"], "instructions", key="m3_plain_arr")
+        report("augment: plain apply_be16_n, per sample of a burst of %d" % BATCH, b["plain_b"], "instructions",
+               key="m3_plain_b")
+        report("augment: base model through the augmented path, reading unchanged (target <= 1.5x the plain sample)",
+               b["c"], "instructions (%.2fx the plain sample; %d..%d over %d heap layouts)"
+               % (b["c"] / pl, spread["base"][0], spread["base"][1], len(PADS)), key="m3_base", ok=b["c"] <= 1.5 * pl)
+        report("augment: same, reading changing every sample", b["t"], "instructions", key="m3_base_t")
+        report("augment: same, per sample of a burst of %d" % BATCH, b["b"], "instructions", key="m3_base_b")
+        report("augment: base model, float anchor (careful float code), reading unchanged", b["float"], "instructions",
+               key="m3_base_float")
+        report("augment: base model, float anchor, reading changing", b["float_t"], "instructions",
+               key="m3_base_float_t")
         worst = 0
         for n in names[1:-1]:
+            k = n.replace(" ", "_").replace("(", "").replace(")", "")
             x = fw[n]["c"] - b["c"]
             worst = max(worst, x)
-            report("augment: + %s, extra per sample" % n, x,
-                   "instructions (reading changing: +%d; burst: +%d)" % (fw[n]["t"] - b["t"], fw[n]["b"] - b["b"]))
-        report("augment: largest single term's extra (target <= 1,500)", worst, "instructions")
-        report("augment: every term, reading unchanged", ev["c"], "instructions (float anchor %d)" % ev["float"])
-        report("augment: every term, reading changing every sample (target <= 8,000)", ev["t"],
-               "instructions (float anchor %d)" % ev["float_t"])
-        report("augment: every term, per sample of a burst of %d (target <= 2,000)" % BATCH, ev["b"], "instructions")
-        report("augment: pure-Python path forced (use_native(False)): base / every term, reading unchanged",
-               "%d / %d" % (b["c_pure"], ev["c_pure"]), "instructions")
-        report("augment: pure-Python path forced: base / every term, reading changing",
-               "%d / %d" % (b["t_pure"], ev["t_pure"]), "instructions")
+            report("augment: + %s, extra per sample" % n, x, "instructions", key="m3_extra_" + k)
+            report("augment: + %s, extra per sample, reading changing" % n, fw[n]["t"] - b["t"], "instructions",
+                   key="m3_extra_%s_t" % k)
+            report("augment: + %s, extra per sample of a burst" % n, fw[n]["b"] - b["b"], "instructions",
+                   key="m3_extra_%s_b" % k)
+        report("augment: largest single term's extra (target <= 1,500)", worst, "instructions", key="m3_extra_worst",
+               ok=worst <= 1500)
+        report("augment: every term, reading unchanged", ev["c"], "instructions", key="m3_every")
+        report("augment: every term, reading changing every sample (target <= 8,000)", ev["t"], "instructions",
+               key="m3_every_t", ok=ev["t"] <= 8000)
+        report("augment: every term, per sample of a burst of %d (target <= 2,000)" % BATCH, ev["b"], "instructions",
+               key="m3_every_b", ok=ev["b"] <= 2000)
+        report("augment: every term, float anchor, reading unchanged", ev["float"], "instructions",
+               key="m3_every_float")
+        report("augment: every term, float anchor, reading changing", ev["float_t"], "instructions",
+               key="m3_every_float_t")
+        report("augment: pure-Python path forced (use_native(False)), base, reading unchanged", b["c_pure"],
+               "instructions", key="m3_base_pure")
+        report("augment: pure-Python path forced, every term, reading unchanged", ev["c_pure"], "instructions",
+               key="m3_every_pure")
+        report("augment: pure-Python path forced, base, reading changing", b["t_pure"], "instructions",
+               key="m3_base_pure_t")
+        report("augment: pure-Python path forced, every term, reading changing", ev["t_pure"], "instructions",
+               key="m3_every_pure_t")
         locks = sorted({fw[n]["lock"] for n in names})
         report("augment: samples and bursts under heap_lock() on the Cortex-M3 firmware, every model",
-               "ok" if locks == ["ok"] else "FAIL", "")
+               "ok" if locks == ["ok"] else "FAIL", "", key="m3_locked", ok=locks == ["ok"])
         ram = fw["ram"]
-        report("augment: heap for the module (.mpy) on the Cortex-M3 firmware (fixedpoint: %d)" % ram[0], ram[1], "B")
-        report("augment: heap of a first Augmented (base; with the native kernels' import) / a second "
-               "(every term)", "%d / %d" % (ram[2], ram[3]), "B")
-        report("augment: Cortex-M3 firmware run wall time", time.time() - t0, "s")
+        report("augment: heap for fixedpoint (.mpy) on the Cortex-M3 firmware", ram[0], "B", key="ram_fixedpoint")
+        report("augment: heap for the module (.mpy) on the Cortex-M3 firmware", ram[1], "B", key="ram_module")
+        report("augment: heap of a first Augmented (base; with the native kernels' import)", ram[2], "B",
+               key="ram_first")
+        report("augment: heap of a second Augmented (every term)", ram[3], "B", key="ram_second")
+        report("augment: Cortex-M3 firmware run wall time", time.time() - t0, "s", key="m3_wall")
         _vm_precision(report, time.time())
         return
     report("augment: Cortex-M3 firmware not available (%s); VM time ratios instead" % why, "", "")
@@ -483,9 +535,12 @@ def _vm_precision(report, t0):
     inp["raw"] = np.clip(np.round(devmodel.predict(m, inp, ref, F)), -32768, 32767).astype(np.int64)
     y, info = replay.run_device(m, inp)
     err = np.abs(y - devmodel.compensate(m, inp, F) * m["out_scale"])
-    report("augment: bytes allocated per sample, every term on (VM)", info["allocated_per_sample"], "B")
-    report("augment: clamped feature values in that run (0: all inside their bounds)", info.get("clamped", 0), "")
-    report("augment: heap-locked samples, every term on", "ok" if info["heap_locked"] else "FAIL", "")
-    report("augment: worst error vs float64, every term, %d samples" % n, float(err.max()), "output LSB")
-    report("augment: RMS error vs float64, every term", float(np.sqrt(np.mean(err ** 2))), "output LSB")
-    report("augment: VM run wall time", time.time() - t0, "s")
+    report("augment: bytes allocated per sample, every term on (VM)", info["allocated_per_sample"], "B", key="alloc",
+           ok=info["allocated_per_sample"] == 0)
+    report("augment: clamped feature values in that run (0: all inside their bounds)", info.get("clamped", 0), "",
+           key="clamped")
+    report("augment: heap-locked samples, every term on", "ok" if info["heap_locked"] else "FAIL", "", key="locked",
+           ok=bool(info["heap_locked"]))
+    report("augment: worst error vs float64, every term, %d samples" % n, float(err.max()), "output LSB", key="worst")
+    report("augment: RMS error vs float64, every term", float(np.sqrt(np.mean(err ** 2))), "output LSB", key="rms")
+    report("augment: VM run wall time", time.time() - t0, "s", key="vm_wall")

@@ -119,18 +119,22 @@ def bench(report):
             worst = max(worst, float(err.max()))
             exact += int(np.sum(ys == np.floor(ref + 0.5)))
             total += len(ys)
-    report("core: bytes allocated per compensated 3-axis sample (VM)", alloc["apply_be16"][0], "B")
-    report("core: heap-locked compensated sample runs", "ok" if alloc["apply_be16"][1] else "FAIL", "")
+    report("core: bytes allocated per compensated 3-axis sample (VM)", alloc["apply_be16"][0], "B", key="alloc",
+           ok=alloc["apply_be16"][0] == 0)
+    report("core: heap-locked compensated sample runs", "ok" if alloc["apply_be16"][1] else "FAIL", "", key="locked",
+           ok=bool(alloc["apply_be16"][1]))
     fb = alloc["floats"][0]
-    report("core: bytes allocated per float-formula 3-axis sample (VM, contrast)", fb, "B")
+    report("core: bytes allocated per float-formula 3-axis sample (VM, contrast)", fb, "B", key="float_alloc")
     # This VM grows its heap instead of collecting, so collections can't be counted here;
     # derived: a board with 100 kB free heap sampling at 1 kHz fills it every 100e3/(fb*1e3) s.
     if fb > 0:
-        report("core: float formula at 1 kHz, 100 kB free heap: a GC every (derived)", 100e3 / (fb * 1e3), "s")
-    report("core: time per compensated 3-axis sample / unpack floor", times["apply_be16"] / times["unpack"], "x")
-    report("core: same, temperature changing every sample", times["with_update"] / times["unpack"], "x")
-    report("core: worst error vs float64, all 65536 raw x %d temps x 3 axes" % len(temps), worst, "output LSB")
-    report("core: samples equal to the correctly rounded float64 value", 100.0 * exact / total, "%")
-    report("core: VM run wall time", time.time() - t0, "s")
-
-
+        report("core: float formula at 1 kHz, 100 kB free heap: a GC every (derived)", 100e3 / (fb * 1e3), "s",
+               key="float_gc_s")
+    report("core: time per compensated 3-axis sample / unpack floor", times["apply_be16"] / times["unpack"], "x",
+           key="apply_ratio")
+    report("core: same, temperature changing every sample", times["with_update"] / times["unpack"], "x",
+           key="update_ratio")
+    report("core: worst error vs float64, all 65536 raw x %d temps x 3 axes" % len(temps), worst, "output LSB",
+           key="worst")
+    report("core: samples equal to the correctly rounded float64 value", 100.0 * exact / total, "%", key="exact_pct")
+    report("core: VM run wall time", time.time() - t0, "s", key="wall")

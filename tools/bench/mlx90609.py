@@ -119,18 +119,18 @@ def bench(report):
     out = mpvm.run(_VM, mounts=(os.path.join(REPO, "tools", "sim") + ":/simdir",), paths=("/simdir",))
     alloc = mpvm.alloc_lines(out)
     b, ok = alloc["rate"]
-    report("mlx90609 bytes per compensated sample (driver read + compensate, VM)", b, "bytes")
-    report("mlx90609 heap-locked read + compensate", 1.0 if ok else 0.0, "ok")
+    report("mlx90609 bytes per compensated sample (driver read + compensate, VM)", b, "bytes", key="alloc", ok=b == 0)
+    report("mlx90609 heap-locked read + compensate", "ok" if ok else "FAIL", "", key="locked", ok=bool(ok))
     line = [ln for ln in out.splitlines() if ln.startswith("TIME ")][0].split()
     tf, tc, tu, td, n = (int(x) for x in line[1:])
     report("mlx90609 unpack floor per sample (VM)", tf / n, "us")
     report("mlx90609 unpack + compensate per sample (VM)", tc / n, "us")
-    report("mlx90609 compensate time ratio vs unpack floor", tc / tf, "x")
-    report("mlx90609 same with a new TEMPOUT every sample (update + compensate)", tu / tf, "x")
+    report("mlx90609 compensate time ratio vs unpack floor", tc / tf, "x", key="ratio")
+    report("mlx90609 same with a new TEMPOUT every sample (update + compensate)", tu / tf, "x", key="update_ratio")
     report("mlx90609 driver rate() incl. simulated SPI, 2 conversions (VM)", td / n, "us")
     w = _worst_error()
-    report("mlx90609 worst error vs AN2 eq. 3-13 (output LSB = 1 milli-deg/s)", w, "LSB")
+    report("mlx90609 worst error vs AN2 eq. 3-13 (output LSB = 1 milli-deg/s)", w, "LSB", key="worst")
 
 
 if __name__ == "__main__":
-    bench(lambda name, value, unit: print("%-75s %10.4f %s" % (name, value, unit)))
+    bench(lambda name, value, unit, key=None, ok=None: print("%-75s %10s %s" % (name, value, unit)))

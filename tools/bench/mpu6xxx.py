@@ -153,23 +153,28 @@ def vm_figures(report):
             _, k, v = line.split()
             t[k] = float(v)
     comp = [k for k in alloc if k.startswith("comp")]
-    report("mpu6xxx: bytes allocated per captured FIFO packet (VM)", alloc["acc16"][0] / 16, "B")
-    report("mpu6xxx: bytes allocated per compensated sample, worst of %d drivers (VM)" % len(comp),
-           max(alloc[k][0] for k in comp), "B")
+    report("mpu6xxx: bytes allocated per captured FIFO packet (VM)", alloc["acc16"][0] / 16, "B", key="alloc_packet",
+           ok=alloc["acc16"][0] == 0)
+    worst = max(alloc[k][0] for k in comp)
+    report("mpu6xxx: bytes allocated per compensated sample, worst of %d drivers (VM)" % len(comp), worst, "B",
+           key="alloc_sample", ok=worst == 0)
     locked = alloc["acc16"][1] and all(alloc[k][1] for k in comp)
-    report("mpu6xxx: heap-locked capture and compensation", "ok" if locked else "FAIL", "")
+    report("mpu6xxx: heap-locked capture and compensation", "ok" if locked else "FAIL", "", key="locked",
+           ok=bool(locked))
     # acc16 ran N/16 calls of 16 packets: N packets, as many as the floor unpacked
-    report("mpu6xxx: time per captured packet (sum, min/max) / 12-byte unpack floor", t["acc16"] / t["unpack12"], "x")
+    report("mpu6xxx: time per captured packet (sum, min/max) / 12-byte unpack floor", t["acc16"] / t["unpack12"], "x",
+           key="packet_ratio")
     # the data registers come through a bus whose read is one C call (FrameI2C), as
     # machine.I2C's is on a board; the floor unpacks the same 14 bytes with no bus at all
-    report("mpu6xxx: the 14-byte bus read alone / 14-byte unpack floor", t["bus"] / t["unpack14"], "x")
-    report("mpu6xxx: read_raw / 14-byte unpack floor", t["raw"] / t["unpack14"], "x")
+    report("mpu6xxx: the 14-byte bus read alone / 14-byte unpack floor", t["bus"] / t["unpack14"], "x",
+           key="bus_ratio")
+    report("mpu6xxx: read_raw / 14-byte unpack floor", t["raw"] / t["unpack14"], "x", key="raw_ratio")
     for key, what in SCENARIOS:
         for avg in (16, 1):
             k = key + str(avg)
             report("mpu6xxx: read_compensated, temp_avg=%d, %s / 14-byte unpack floor" % (avg, what),
-                   t[k] / t["unpack14"], "x")
-            report("mpu6xxx:   same / read_raw", t[k] / t["raw"], "x")
+                   t[k] / t["unpack14"], "x", key="comp_%s%d_ratio" % (key, avg))
+            report("mpu6xxx:   same / read_raw", t[k] / t["raw"], "x", key="comp_%s%d_vs_raw" % (key, avg))
 
 
 def sim_figures(report):
@@ -181,9 +186,11 @@ def sim_figures(report):
     w0 = time.time()
     imu.calibrate()
     wall = time.time() - w0
-    report("mpu6xxx: bus transactions per captured packet (default calibrate, 400 kHz)", bus.transactions / 1050.0, "")
-    report("mpu6xxx: simulated duration of a default calibration (1000 packets + 50 settling)", (sim.ns - ns0) / 1e6, "ms")
-    report("mpu6xxx: CPython wall time of that calibration against the simulator", wall * 1000, "ms")
+    report("mpu6xxx: bus transactions per captured packet (default calibrate, 400 kHz)", bus.transactions / 1050.0, "",
+           key="bus_per_packet")
+    report("mpu6xxx: simulated duration of a default calibration (1000 packets + 50 settling)", (sim.ns - ns0) / 1e6,
+           "ms", key="cal_sim_ms")
+    report("mpu6xxx: CPython wall time of that calibration against the simulator", wall * 1000, "ms", key="cal_wall_ms")
     worst_g = worst_a = 0.0
     for i, face in enumerate(FACES):
         sim = MPU6xxxSim("MPU-6500", seed=50 + i)
@@ -193,8 +200,10 @@ def sim_figures(report):
         m = sim.mean_output()
         worst_g = max(worst_g, max(abs(v) for v in m[3:]))
         worst_a = max(worst_a, max(abs(m[k] / 16384.0 - FACES[face][k]) for k in range(3)))
-    report("mpu6xxx: bias left, datasheet noise, 6 faces: gyro (half a step = 2)", worst_g, "LSB at 250 dps")
-    report("mpu6xxx: bias left, datasheet noise, 6 faces: accel (half a step = 0.49)", worst_a * 1000, "mg")
+    report("mpu6xxx: bias left, datasheet noise, 6 faces: gyro (half a step = 2)", worst_g, "LSB at 250 dps",
+           key="bias_gyro")
+    report("mpu6xxx: bias left, datasheet noise, 6 faces: accel (half a step = 0.49)", worst_a * 1000, "mg",
+           key="bias_accel")
     # software offset(T): integer path vs float64 over all raw codes, across and beyond t_cal
     t0 = 4000
     from mpu6xxx_vmcheck import model_points  # host_tests/vm, plain Python
@@ -222,8 +231,8 @@ def sim_figures(report):
                         abs(imu._cg.apply(raw, k) - 1000.0 * (raw - off_g) / sg),
                         abs(imu._ca.apply(raw, k) - 1000.0 * (raw - off_a) / sa),
                     )
-    report("mpu6xxx: software offset(T) worst error vs float64 (mdps / mg)", worst, "output LSB")
-    report("mpu6xxx: temperature fixed point worst error", _temp_error(), "0.01 degC")
+    report("mpu6xxx: software offset(T) worst error vs float64 (mdps / mg)", worst, "output LSB", key="tc_worst")
+    report("mpu6xxx: temperature fixed point worst error", _temp_error(), "0.01 degC", key="temp_worst")
 
 
 def _temp_error():
@@ -245,7 +254,7 @@ def bench(report):
 
 
 if __name__ == "__main__":
-    def _report(name, value, unit):
+    def _report(name, value, unit, key=None, ok=None):
         print("  %-78s %s %s" % (name, "%.4g" % value if isinstance(value, float) else value, unit))
 
     bench(_report)

@@ -58,6 +58,8 @@ def measure(n, workdir):
     if p.returncode or not line:
         raise RuntimeError(f"simgap bench at {n} rows failed: {p.stderr[-500:]}")
     _, rc, dt, rss_kb = line[-1].split()
+    if rc != "0":  # the diagnosis itself refused or failed: no figure to report
+        raise RuntimeError(f"simgap bench at {n} rows: the diagnosis exited {rc}: {p.stderr.strip()[-500:]}")
     return float(dt), float(rss_kb) / 1024.0
 
 
@@ -66,6 +68,8 @@ def bench(report):
     with tempfile.TemporaryDirectory() as d:
         for n in sizes:
             dt, mb = measure(n, d)
-            report("simgap: %d + %d rows, read + diagnose (one core, one BLAS thread)" % (n, n), dt, "s")
-            report("simgap: %d + %d rows, rows per second" % (n, n), 2 * n / dt, "rows/s")
-            report("simgap: %d + %d rows, peak memory (target < 1500 MB at 1 M)" % (n, n), mb, "MB")
+            report("simgap: %d + %d rows, read + diagnose (one core, one BLAS thread)" % (n, n), dt, "s",
+                   key="rows_%d_s" % n)
+            report("simgap: %d + %d rows, rows per second" % (n, n), 2 * n / dt, "rows/s", key="rows_%d_per_s" % n)
+            report("simgap: %d + %d rows, peak memory (target < 1500 MB at 1 M)" % (n, n), mb, "MB",
+                   key="rows_%d_mb" % n)

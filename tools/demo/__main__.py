@@ -250,18 +250,20 @@ def data_dir():
 
 
 def gap_diagnosis():
-    """The sim-to-real gap tool on the real TofuPilot IMU log (issue 8); None if no data."""
+    """The sim-to-real gap tool on the real TofuPilot IMU log (issue 8): the plot's path, or None
+    when there are no logs to diagnose (said); DemoFailed when the conversion or the diagnosis
+    fails."""
     d = data_dir()
     if not os.path.isdir(d):
         say("no real logs at %s (set TEMPCOMP_DATA=DIR): skipping the diagnosis" % os.path.abspath(d))
         return None
     real = os.path.join(OUT, "real")
     py = sys.executable
-    conv = subprocess.run([py, "-m", "tools.simgap.convert", "--out", real], cwd=REPO, capture_output=True, text=True)
+    conv = subprocess.run([py, "-m", "tools.simgap.convert", "--data", d, "--out", real], cwd=REPO,
+                          capture_output=True, text=True)
     train = os.path.join(real, "tofupilot_gyro_train.csv")
     if conv.returncode != 0 or not os.path.exists(train):
-        say("could not convert the logs in %s, skipping the diagnosis:\n%s" % (d, conv.stderr.strip()[-2000:]))
-        return None
+        raise DemoFailed("could not convert the logs in %s: %s" % (d, conv.stderr.strip()[-2000:]))
     cmd = [py, "-m", "tools.simgap", train, "--withheld", os.path.join(real, "tofupilot_gyro_withheld.csv"),
            "--json", os.path.join(real, "tofupilot_gyro.json"), "--plot", os.path.join(real, "tofupilot_gyro.png"),
            "--export", os.path.join(real, "tofupilot_gyro_model.json")]
@@ -269,9 +271,64 @@ def gap_diagnosis():
     r = subprocess.run(cmd, cwd=REPO, capture_output=True, text=True)
     say(r.stdout.rstrip())
     if r.returncode != 0:
-        say("the diagnosis failed (exit %d): %s" % (r.returncode, r.stderr.strip()[-2000:]))
-        return None
+        raise DemoFailed("the diagnosis failed (exit %d): %s" % (r.returncode, r.stderr.strip()[-2000:]))
     return os.path.join(real, "tofupilot_gyro.png")
+
+
+class DemoFailed(Exception):
+    """A step of the demo failed: the rest still runs, and the demo exits with status 1."""
+
+
+class Steps:
+    """The demo's later steps, each run even when one before it failed; ``failed`` names the
+    failures, ``done`` what was shown, and ``exit_status()`` is 1 when anything failed."""
+
+    def __init__(self):
+        self.done = []
+        self.failed = []
+
+    def run(self, name, fn, *args):
+        """fn(*args): its summary line (or None: nothing to show); a failure is said and recorded."""
+        try:
+            line = fn(*args)
+        except (DemoFailed, BoardError, OSError, subprocess.SubprocessError) as e:
+            say("FAILED: %s: %s" % (name, e))
+            self.failed.append("%s: %s" % (name, str(e).splitlines()[0] if str(e) else type(e).__name__))
+            return None
+        if line:
+            self.done.append(line)
+        return line
+
+    def exit_status(self):
+        return 1 if self.failed else 0
+
+
+def fixedpoint_step(*args):
+    """Step 7: tools.demo.fixedpoint in the VM; DemoFailed when it fails a check or cannot run
+    (args: its command-line options)."""
+    r = subprocess.run([sys.executable, "-m", "tools.demo.fixedpoint", *args], cwd=REPO, capture_output=True,
+                       text=True)
+    say(r.stdout.rstrip())
+    if r.returncode != 0:
+        checks = [ln[len("CHECK FAILED: "):] for ln in r.stdout.splitlines() if ln.startswith("CHECK FAILED: ")]
+        raise DemoFailed("; ".join(checks) or "exit %d: %s" % (r.returncode, r.stderr.strip()[-2000:]))
+    return "compared the fixed-point core with float64 in the VM"
+
+
+def gap_step():
+    """Step 8: the diagnosis of the real log; (summary line, plot) or (None, None) without logs."""
+    gap_png = gap_diagnosis()
+    if not gap_png:
+        return None
+    say("gap plot: %s" % os.path.relpath(gap_png, REPO))
+    with open(os.path.join(os.path.dirname(gap_png), "tofupilot_gyro.json")) as f:
+        res = json.load(f)
+    verdict = res["verdict"]
+    left = ["%s %.1fx" % (w["axis"], w["ratio"]) for w in res["warnings"] if w["code"] == "unexplained_residual"]
+    what = (", ".join(verdict) if verdict else "no catalogue effect that survives its noise model")
+    if left:
+        what += "; left unexplained (x the noise model's floor): " + ", ".join(left)
+    return "diagnosed a real IMU log: the temperature model misses %s (%s)" % (what, os.path.relpath(gap_png, REPO))
 
 
 def main(argv=None):
@@ -453,43 +510,31 @@ def main(argv=None):
             vb.stop()
             say("virtual Pico stopped" if pico else "virtual board stopped")
 
+    steps = Steps()
+    steps.done[:0] = done
     header(7, "the fixed-point core against float64 (in the MicroPython VM)")
-    r = subprocess.run([sys.executable, "-m", "tools.demo.fixedpoint"], cwd=REPO, capture_output=True, text=True)
-    say(r.stdout.rstrip() if r.returncode == 0 else "fixed-point step failed: " + r.stderr[-2000:])
-    if r.returncode == 0:
-        done.append("compared the fixed-point core with float64 in the VM")
+    steps.run("the fixed-point step", fixedpoint_step)
 
     header(8, "sim-to-real gap: diagnosis of a real log (TofuPilot IMU thermal test, gyro)")
-    gap_png = gap_diagnosis()
-    if gap_png:
-        say("gap plot: %s" % os.path.relpath(gap_png, REPO))
-        with open(os.path.join(os.path.dirname(gap_png), "tofupilot_gyro.json")) as f:
-            res = json.load(f)
-        verdict = res["verdict"]
-        left = ["%s %.1fx" % (w["axis"], w["ratio"]) for w in res["warnings"]
-                if w["code"] == "unexplained_residual"]
-        what = (", ".join(verdict) if verdict else "no catalogue effect that survives its noise model")
-        if left:
-            what += "; left unexplained (x the noise model's floor): " + ", ".join(left)
-        done.append("diagnosed a real IMU log: the temperature model misses %s (%s)" % (
-            what, os.path.relpath(gap_png, REPO)))
+    diagnosed = steps.run("the diagnosis of the real log", gap_step)
 
     header(9, "the diagnosis on the board: export, store, restore, before/after on the withheld part")
-    if gap_png:
+    if diagnosed:
         from tools.demo import augment
-        try:
-            line = augment.run(say, os.path.dirname(gap_png))
-        except BoardError as e:
-            line = None
-            say("the board step failed: %s" % e)
-        if line:
-            done.append(line)
+
+        steps.run("the board step", augment.run, say, os.path.join(OUT, "real"))
+    else:
+        say("no diagnosis to put on the board: skipped")
 
     header(10, "summary")
-    for line in done:
+    for line in steps.done:
         say(" - " + line)
+    for line in steps.failed:
+        say(" - FAILED: " + line)
     say("took %.0f s; plot: %s" % (time.time() - t_start, os.path.relpath(png, REPO)))
-    return 0
+    if steps.failed:
+        say("make demo: %d step(s) failed" % len(steps.failed))
+    return steps.exit_status()
 
 
 if __name__ == "__main__":

@@ -61,12 +61,13 @@ for name in ('gyro_base', 'gyro_aug'):
 
 
 def run(say, real, name="tofupilot_gyro"):
-    """The step; returns the summary line, or None (with the reason said) when it cannot run."""
+    """The step; returns the summary line. BoardError when a step fails or the board's figures are
+    not the host's: the board's shrink (after / before) differs from the diagnosis' own by more
+    than 0.005 + 2 %, or its compensation allocated."""
     model_path = os.path.join(real, name + "_model.json")
     held_path = os.path.join(real, name + "_withheld.csv")
     if not os.path.exists(model_path):
-        say("no exported model at %s: skipping" % os.path.relpath(model_path, REPO))
-        return None
+        raise BoardError("the diagnosis exported no model (%s)" % os.path.relpath(model_path, REPO))
     with open(model_path) as f:
         model = json.load(f)
     say("exported: base + %s; not on the board: %s" % (
@@ -83,8 +84,7 @@ def run(say, real, name="tofupilot_gyro"):
             os.path.relpath(store, REPO), os.path.relpath(model_path, REPO), rec, " ".join(extra)))
         r = subprocess.run(cmd, cwd=REPO, capture_output=True, text=True)
         if r.returncode != 0:
-            say("store put failed: %s" % r.stderr.strip())
-            return None
+            raise BoardError("store put failed: %s" % r.stderr.strip())
     held = read_log(held_path)
     dev = model["device"]
     inp = devmodel.board_inputs(dev, held, replay.uptime0(held))
@@ -131,5 +131,19 @@ def run(say, real, name="tofupilot_gyro"):
                                                  "%.4g -> %.4g (%.1f%%)" % (hb, ha, 100 * (1 - ha / hb)) if hb else ""))
     say("bytes allocated by the board's compensation over both runs (after the first %d rows): %d"
         % (64, sum(allocated)))
+    bad = []
+    for i, a in enumerate(AXES):
+        hb = host.get("base_only", {}).get(a)
+        ha = host.get("augmented", {}).get(a)
+        if hb:
+            dev, ref = got["gyro_aug"][i] / got["gyro_base"][i], ha / hb
+            if not abs(dev - ref) <= 0.005 + 0.02 * ref:
+                bad.append("axis %s: the board's shrink %.3f, the host's %.3f" % (a, dev, ref))
+    if not host:
+        bad.append("the model holds no host figures to compare with")
+    if sum(allocated):
+        bad.append("the board's compensation allocated %d bytes" % sum(allocated))
+    if bad:
+        raise BoardError("the board does not reproduce the host: " + "; ".join(bad))
     return "the board ran the exported model from its store: withheld RMS %s %s -> %s" % (
         "/".join("%.3g" % v for v in got["gyro_base"]), unit, "/".join("%.3g" % v for v in got["gyro_aug"]))

@@ -9,6 +9,7 @@ The table shows raw vs compensated output against the true rate and against the 
 evaluation of the same calibration.
 """
 
+import argparse
 import os
 import sys
 
@@ -24,6 +25,11 @@ from tools.firmware import mpvm  # noqa: E402
 TEMP_LSB_PER_C = 333.87
 TEMP_OFFSET_C = 21.0
 RATE_DPS = 100.0
+# the checks this step makes (exit status 1 when one fails): the core's bound against float64
+# (README, "The fixed-point core": |error| <= 0.7 + |y| * 2**-24 output LSB on any set the set-up accepts)
+# and compensation beating the raw output by 20x on this drift
+BOUND_LSB = 0.7
+GAIN = 20.0
 
 
 def offset_lsb(temp_c):
@@ -52,7 +58,14 @@ for t, raw in %(rows)r:
 """
 
 
-def main():
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--bound", type=float, default=BOUND_LSB,
+                    help="worst fixed-point error vs float64 allowed, output LSB, plus |y| * 2**-24 "
+                         "(default %(default)s)")
+    ap.add_argument("--gain", type=float, default=GAIN,
+                    help="how many times smaller the compensated error must be than the raw one (default %(default)s)")
+    a = ap.parse_args(argv)
     rng = np.random.default_rng(2)
     cal_temps = (-10.0, 25.0, 70.0)
     # calibration: offset from a capture at rest, sensitivity from a known rate, at each temperature
@@ -81,7 +94,7 @@ def main():
     print()
     hdr = ("temp degC", "t code", "raw LSB", "uncomp mdps", "err mdps", "comp mdps", "err mdps", "float64 ref", "vs ref LSB")
     print("%9s %7s %8s %12s %9s %10s %9s %12s %10s" % hdr)
-    worst_raw = worst_comp = worst_ref = 0.0
+    worst_raw = worst_comp = worst_ref = over = 0.0
     for tc, (t, raw) in zip(sweep, rows):
         u = 1000.0 * raw / 131.0  # what a driver without compensation reports
         y = comp[(t, raw)]
@@ -91,12 +104,21 @@ def main():
         worst_raw = max(worst_raw, abs(u - truth))
         worst_comp = max(worst_comp, abs(y - truth))
         worst_ref = max(worst_ref, abs(y - ref))
+        over = max(over, abs(y - ref) - abs(ref) * 2.0**-24)
         print("%9.1f %7d %8d %12.0f %+9.0f %10d %+9.0f %12.2f %+10.2f" % (tc, t, raw, u, u - truth, y, y - truth, ref, y - ref))
     print()
     print("worst error vs true rate: uncompensated %.0f mdps, compensated %.0f mdps (sensor noise"
           " 1.5 LSB = 11 mdps included)" % (worst_raw, worst_comp))
     print("worst fixed-point error vs the float64 evaluation of the same calibration: %.3f output LSB" % worst_ref)
+    failed = []
+    if not over <= a.bound:
+        failed.append("fixed point vs float64 %.3f output LSB, more than %g + |y| * 2**-24" % (worst_ref, a.bound))
+    if not worst_comp * a.gain < worst_raw:
+        failed.append("compensated error %.0f mdps is not %gx below the raw %.0f mdps" % (worst_comp, a.gain, worst_raw))
+    for f in failed:
+        print("CHECK FAILED: " + f)
+    return 1 if failed else 0
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())

@@ -294,7 +294,7 @@ def diagnose(train, withheld=None, model=None):
         _, ratio_a = noise.classify(final_resid[a] - np.mean(final_resid[a]), sigma[a])
         noise_kind[AXES[a]] = {"kind": kind, "allan_ratio": ratio_a}
         noise_json[AXES[a]] = nm.to_json(train.unit, tu, info["allan"] if info else None,
-                                         info["allan_fit"] if info else None)
+                                         info["allan_fit"] if info else None, stride=k_train)
         noise_json[AXES[a]]["white_floor_train"] = float(sigma_t[a])
         if not nm.is_white:
             rw = noise_json[AXES[a]]["random_walk"]

@@ -102,7 +102,7 @@ class Problem:
         return p.log.out - self.model.predict(p.log)
 
     def _design(self, p, axis, blocks):
-        cols = [] if self.model is not None else [base_columns(self.ctx, p.log, axis)]
+        cols = [] if self.model is not None else [self._base_columns(p, axis)]
         for name, shape in blocks:
             e = BY_NAME[name]
             if not e.per_run:
@@ -110,6 +110,14 @@ class Problem:
         if not cols:
             return np.zeros((len(p), 0))
         return np.column_stack(cols)
+
+    def _base_columns(self, p, axis):
+        """The sim's regressors on prepared log p, built once per log and axis (every design
+        starts with them; column_stack copies, so the cached array is never written)."""
+        key = ("base_columns", axis)
+        if key not in p.cache:
+            p.cache[key] = base_columns(self.ctx, p.log, axis)
+        return p.cache[key]
 
     def _train_design(self, axis, blocks, model):
         """(X raw on masked training rows with per-run and level columns, scale, Xs filtered

@@ -183,11 +183,10 @@ class NoiseModel:
             s = ton[::k]
             v = self.s2 * (1 - (1.0 / ton.size if demean else 0.0))
             if self.q > 0:
-                C = self.q * np.minimum.outer(s, s)
-                v += float(np.mean(np.diag(C)) - (np.mean(C) if demean else 0.0))
+                # walk covariance q min(s_i, s_j): its diagonal's mean, less its mean
+                v += self.q * (float(np.mean(s)) - (_mean_min(s) if demean else 0.0))
             if self.g2 > 0:
-                C = self.g2 * self.phi ** np.abs(np.subtract.outer(s, s))
-                v += float(self.g2 - (np.mean(C) if demean else 0.0))
+                v += self.g2 * (1.0 - (_mean_pow_gap(s, self.phi) if demean else 0.0))
             tot += v * ton.size
             n += ton.size
         return tot / n if n else self.s2
@@ -196,10 +195,18 @@ class NoiseModel:
         t = avar_terms(m, self.s2, self.q, self.g2, self.phi)
         return t["white"] + t["random_walk"] + t["bias_instability"]
 
-    def to_json(self, unit, time_unit, ad=None, fit=None):
+    def to_json(self, unit, time_unit, ad=None, fit=None, stride=1):
         """The `noise_model` JSON of one axis: each term in its IEEE unit and the averaging time
-        where it dominates the fitted Allan deviation."""
+        where it dominates the fitted Allan deviation.
+
+        stride k > 1: the model was estimated on every k-th row of the log (rows.stride), so
+        its sample is k of the log's steps (dt = sample_period). Dropping rows leaves each
+        row's white noise as it was (sigma is the log's own), while a walk's increments add
+        over the k steps (q is per model sample; K and tau_c are physical either way). The
+        angle/velocity random walk N = sigma sqrt(step) is the log's: read at its own step,
+        dt / k, not at dt (that would overstate it sqrt(k) times)."""
         dt = self.dt
+        step = dt / max(1, int(stride))
         tu = time_unit
         m = np.geomspace(1, max(2.0, ad["m"][-1] if ad is not None and ad["m"].size else 1e4), 200)
         terms = avar_terms(m, self.s2, self.q, self.g2, self.phi)
@@ -212,10 +219,11 @@ class NoiseModel:
 
         out = {
             "white": {"sigma": float(np.sqrt(self.s2)), "unit": unit,
-                      "N": float(np.sqrt(self.s2 * dt)), "N_unit": f"{unit}*sqrt({tu})",
+                      "N": float(np.sqrt(self.s2 * step)), "N_unit": f"{unit}*sqrt({tu})",
                       "read_at": float(dt), "dominates_to": _last_dom(m * dt, terms["white"] / tot)},
             "random_walk": None, "bias_instability": None,
-            "averaging_time_unit": tu, "sample_period": float(dt), "method":
+            "averaging_time_unit": tu, "sample_period": float(dt), "stride": max(1, int(stride)),
+            "log_sample_period": float(step), "method":
                 "state-space likelihood (white + bias random walk + first-order Gauss-Markov), "
                 "steady-state Kalman innovations"}
         if self.q > 0:
@@ -242,6 +250,34 @@ class NoiseModel:
         if ad is not None and ad["m"].size:
             out["allan_taus"] = [float(t) for t in ad["tau"]]
         return out
+
+
+def _mean_min(s):
+    """mean over all pairs (i, j) of min(s_i, s_j), without the n x n matrix: in ascending
+    order the k-th of n values is the smaller of 2 (n - k) - 1 ordered pairs (k from 1)."""
+    a = np.sort(np.asarray(s, float))
+    n = a.size
+    return float(np.dot(a, 2.0 * (n - np.arange(n)) - 1.0)) / (n * n)
+
+
+def _mean_pow_gap(s, phi):
+    """mean over all pairs (i, j) of phi^|s_i - s_j| (a Gauss-Markov term's correlation), summed
+    lag by lag over the sorted times and stopped where phi^gap < 1e-18 for every pair left
+    (their sum is then below 1e-18 n^2, within rounding of the diagonal's n): at most half the
+    pairs the full matrix would raise to a power, far fewer when Tc is short."""
+    a = np.sort(np.asarray(s, float))
+    n = a.size
+    if n == 0:
+        return 0.0
+    lphi = float(np.log(phi))
+    gmax = np.log(1e-18) / lphi if lphi < 0 else np.inf
+    off = 0.0
+    for k in range(1, n):
+        gap = a[k:] - a[:-k]
+        if gap.min() > gmax:        # sorted: every longer lag's gaps are longer still
+            break
+        off += float(np.sum(np.exp(lphi * gap)))
+    return (n + 2.0 * off) / (n * n)
 
 
 def _last_dom(tau, share):

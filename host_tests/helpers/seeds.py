@@ -1,0 +1,39 @@
+"""The random numbers of a test run: tests whose data are random take their seeds from here, so
+every run tries other data, and a failure is repeated with the same data by setting the run's
+seed, which pytest prints at the end of every run (host_tests/conftest.py):
+
+    TEMPCOMP_SEED=123456 make test
+
+``seed(name)`` is the run's seed for one use (a test or a data set), ``seeds(name, n)`` n of them;
+the same TEMPCOMP_SEED gives the same numbers to the same names."""
+import os
+import random
+import zlib
+
+ENV = "TEMPCOMP_SEED"
+
+
+def _run_seed():
+    v = os.environ.get(ENV, "").strip()
+    if v:
+        try:
+            return int(v)
+        except ValueError:
+            raise SystemExit("%s=%r: need an integer" % (ENV, v)) from None
+    return random.SystemRandom().randrange(1, 1000000)
+
+
+RUN = _run_seed()
+
+
+def seed(name, k=0):
+    """A seed in [0, 2**31) for the named use, from the run's seed."""
+    return zlib.crc32(("%d/%s/%d" % (RUN, name, k)).encode()) & 0x7FFFFFFF
+
+
+def seeds(name, n):
+    return [seed(name, k) for k in range(n)]
+
+
+def note():
+    return "%s=%d (this run's random data; set it to repeat them)" % (ENV, RUN)

@@ -1,0 +1,31 @@
+"""A log longer than the diagnosis' row budget is diagnosed on every k-th row (rows.stride):
+its noise model must still be read at the log's own sample step. The truth is the planted
+noise (adversarial_logs: white sigma per row, a bias walk of `walk` per sqrt(row), DT s
+between rows), not the tool's own arithmetic."""
+import adversarial_logs as A
+import numpy as np
+import pytest
+
+from tools.simgap.diagnose import MAX_ROWS, diagnose
+
+
+def test_noise_model_of_a_thinned_log_is_read_at_the_log_step():
+    n = 3 * MAX_ROWS + 5_000          # stride 4
+    sigma, walk = 2.0, 0.02
+    res, _ = diagnose(A.make(n=n, seed=11, sigma=sigma, walk=walk),
+                      A.make(n=n // 4, seed=12, sigma=sigma, walk=walk))
+    k = res["rows"]["stride"]["train"]
+    assert k == int(np.ceil(n / MAX_ROWS)) == 4
+    for ax in "xyz":
+        nm = res["noise_model"][ax]
+        assert nm["stride"] == k
+        assert nm["log_sample_period"] == pytest.approx(A.DT)
+        assert nm["sample_period"] == pytest.approx(k * A.DT)
+        # Dropping rows keeps each row's white noise: sigma, and N = sigma sqrt(DT) of the
+        # log as written (read at the thinned step it would come out sqrt(4) = 2x too big).
+        assert nm["white"]["sigma"] == pytest.approx(sigma, rel=0.1)
+        assert nm["white"]["N"] == pytest.approx(sigma * np.sqrt(A.DT), rel=0.1)
+        # The walk's increments add over the k rows: K = walk / sqrt(DT) per sqrt(s).
+        rw = nm["random_walk"]
+        assert rw is not None and rw["K"] == pytest.approx(walk / np.sqrt(A.DT), rel=0.5)
+        assert rw["q_per_sample"] == pytest.approx(k * walk ** 2, rel=1.0)

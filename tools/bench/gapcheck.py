@@ -1,0 +1,33 @@
+"""`make bench` figures of the gap diagnosis' blind benchmark (tools/gapbench/check.py, what
+`make gap-check` runs): the scores of the full set (27 cases, seed 1) and of the reduced set the
+tests run (host_tests/simgap/test_simgap_blind.py, seed 7), each a check (a missed target makes
+`make bench` exit 1). Deterministic: the generator and the diagnosis are seeded."""
+
+from tools.gapbench import check as gapcheck
+
+SETS = (("full", 1, True), ("reduced", 7, False))
+
+
+def scores(rows):
+    """{key: (hits, cases)} of one run, as tools.gapbench.check.summary counts them."""
+    singles = [r for r in rows if len(r["truth"]) == 1]
+    pairs = [r for r in rows if len(r["truth"]) == 2]
+    nones = [r for r in rows if not r["truth"]]
+    return {"singles": (sum(r["attributed"] for r in singles), len(singles)),
+            "pairs": (sum(r["attributed"] for r in pairs), len(pairs)),
+            "nones": (sum(r["attributed"] for r in nones), len(nones)),
+            "where": (sum(r["where_ok"] for r in rows), len(rows)),
+            "shrink": (sum(r["shrink_ok"] for r in rows), len(rows))}
+
+
+def bench(report):
+    for name, seed, full in SETS:
+        rows = gapcheck.run(seed=seed, full=full)
+        for key, (hits, n) in scores(rows).items():
+            report("gapcheck: %s set (seed %d), %s" % (name, seed, key), hits, "of %d" % n,
+                   key="%s_%s" % (name, key), ok=hits == n)
+            report("gapcheck: %s set, cases of %s" % (name, key), n, "", key="%s_%s_n" % (name, key))
+        report("gapcheck: %s set, worst withheld RMS / true noise" % name, max(r["ratio"] for r in rows), "x",
+               key="%s_worst_ratio" % name)
+        report("gapcheck: %s set, extra effects claimed on effect cases" % name,
+               sum(len(r["extra"]) for r in rows if r["truth"]), "", key="%s_extra" % name)
