@@ -65,6 +65,9 @@ HISTORY = {
         "the .py imports' headroom under a ballast, measured once for test_ram's route (2026-11-27)",
     ("docs/host-libraries.md", "| reader | per file |"): "fastcsv against pandas and pyarrow, measured once for "
                                                         "the decision to keep it (2026-11-27)",
+    ("docs/simgap.md", "| situation | seeds passed | named alone / no verdict | withheld RMS / oracle floor: median, "
+                       "worst | misses |"): "one wander-set sweep (python -m tools gap-check --set wander, seeds "
+                                            "1-20, one log each) on the noise branch (2026-11-27)",
 }
 
 
