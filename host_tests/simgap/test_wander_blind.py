@@ -13,6 +13,22 @@ from tools.gapbench import wander, wandercheck
 SEED = int(os.environ.get("WANDER_SEED") or random.SystemRandom().randint(1, 100_000))
 EFFECT_SITUATIONS = [s for s in wander.SITUATIONS if s not in wandercheck.NO_VERDICT]
 
+# Issue 22 is open: these checks missed on some of the 20 seeds of the last sweep (docs/simgap.md,
+# "The wander set", python -m tools gap-check --set wander --seeds 1-20), so at a random seed they
+# fail that often. They still run and print their seed; a miss is reported as XFAIL with the
+# measured rate, a pass as XPASS. Remove an entry once the sweep shows 20/20 for it.
+KNOWN_GAPS = {
+    ("no_verdict", "off_catalogue"): "issue 22 open: no verdict on 17/20 seeds (5, 9, 11 claim an effect)",
+    ("alone", "lag_rw"): "issue 22 open: named alone on 19/20 seeds (19: hysteresis instead)",
+    ("rms", "lag_rw"): "issue 22 open: within 1.25x on 19/20 seeds (19: 1.90x)",
+    ("rms", "rw_drift"): "issue 22 open: within 1.25x on 18/20 seeds (12: 1.68x, 14: 1.31x)",
+}
+
+
+def _cases(check, situations):
+    return [pytest.param(s, marks=pytest.mark.xfail(strict=False, reason=KNOWN_GAPS[(check, s)]))
+            if (check, s) in KNOWN_GAPS else s for s in situations]
+
 
 @pytest.fixture(scope="module")
 def rows(tmp_path_factory):
@@ -29,13 +45,13 @@ def test_every_situation_was_diagnosed(rows):
     assert sorted(rows) == sorted(wander.SITUATIONS)
 
 
-@pytest.mark.parametrize("situation", EFFECT_SITUATIONS)
+@pytest.mark.parametrize("situation", _cases("alone", EFFECT_SITUATIONS))
 def test_planted_effect_named_alone_on_its_axes(rows, situation):
     r = rows[situation]
     assert r["alone"], "seed %d: planted %s, diagnosis claims %s" % (SEED, r["planted"], r["claims"])
 
 
-@pytest.mark.parametrize("situation", wandercheck.NO_VERDICT)
+@pytest.mark.parametrize("situation", _cases("no_verdict", wandercheck.NO_VERDICT))
 def test_no_verdict_on_noise_and_off_catalogue_offsets(rows, situation):
     r = rows[situation]
     assert r["no_verdict"], "seed %d: verdict %s on %s" % (SEED, r["verdict"], r["claims"])
@@ -48,7 +64,8 @@ def test_unexplained_residual_warned_above_1_5x_the_floor(rows, situation):
         SEED, r["floor"], r["ratio_to_noise"], r["unwarned"])
 
 
-@pytest.mark.parametrize("situation", [s for s in wander.SITUATIONS if s != "off_catalogue"])
+@pytest.mark.parametrize("situation", _cases("rms", [s for s in wander.SITUATIONS
+                                                    if s != "off_catalogue"]))
 def test_final_withheld_rms_within_1_25x_the_oracle_floor(rows, situation):
     r = rows[situation]
     assert r["rms_scored"]
