@@ -51,7 +51,8 @@ def _read_table(path, delim, columns):
         text = read_text(path)
     except HostError as e:
         raise LogError(str(e)) from None
-    rows = csv.reader(io.StringIO(text), delimiter=delim)
+    reader = csv.reader(io.StringIO(text), delimiter=delim)
+    rows = _rows(reader, path)
     header = [h.strip() for h in next(rows, [])]
     miss = [c for c in columns if c not in header]
     if miss:
@@ -75,6 +76,19 @@ def _read_table(path, delim, columns):
     if not out[0]:
         raise LogError(f"{path}: no data rows")
     return {c: np.asarray(v) for c, v in zip(columns, out)}
+
+
+def _rows(reader, path):
+    """The reader's rows; a line the csv module refuses (a stray carriage return or NUL inside a
+    field) becomes a one-line LogError naming that line, not a traceback."""
+    while True:
+        try:
+            row = next(reader)
+        except StopIteration:
+            return
+        except csv.Error as e:
+            raise LogError(f"{path}: line {reader.line_num}: unreadable: {e}") from None
+        yield row
 
 
 def tofupilot(path):
