@@ -11,7 +11,7 @@ from . import augmented, coverage, noise, plausible, prep, uncertainty
 from .effects import CATALOGUE
 from .fit import Problem
 from .logio import AXES
-from .select import Greedy, design_gaps, wander_needs
+from .select import STEP_NEEDS, Greedy, design_gaps, wander_needs
 from .where import localise
 
 RATIO_WARN = 1.5        # final RMS over the model floor above which the residual is unexplained
@@ -74,7 +74,10 @@ def diagnose(train, withheld=None, model=None):
     g = Greedy(prob, sigma_t)
     g.run()
     g.refine()
+    g.swap()
+    g.reshape()
     pruned = g.prune()
+    g.unlogged()
 
     # 3. Plausibility: every size outside the table is reported; only a datasheet bound on
     #    that coefficient alone keeps the effect out of the verdict.
@@ -104,6 +107,10 @@ def diagnose(train, withheld=None, model=None):
         if s["chosen"] and s["chosen"] not in order and any(
                 n == s["chosen"] for a in range(3) for n, _ in g.state[a]):
             order.append(s["chosen"])
+    for a in range(3):      # an effect that came in by a swap (Greedy.swap) was never a step's winner
+        for n, _ in g.state[a]:
+            if n not in order:
+                order.append(n)
     verdict = list(order)
 
     # 4. Coverage of the withheld log, then its one scoring.
@@ -346,6 +353,14 @@ def diagnose(train, withheld=None, model=None):
             e["axes"].append(AXES[w["axis"]])
             e["z"].append(round(float(w["z"]), 2))
     not_ident += list(wander.values())
+    # Effects an offset step at an unlogged time explains as well (Greedy.unlogged).
+    stepped = {}
+    for w in g.stepped:
+        e = stepped.setdefault(w["effect"], {"effects": [w["effect"], "unlogged_step"], "axes": [],
+                                             "needs": STEP_NEEDS, "z": []})
+        e["axes"].append(AXES[w["axis"]])
+        e["z"].append(round(float(w["z"]), 2))
+    not_ident += list(stepped.values())
     where = localise(prob.train, base_t, sigma_t, ctx)
     result = {
         "verdict": verdict,

@@ -61,6 +61,11 @@ class Effect:
     def columns(self, ctx, p, shape, axis):
         raise NotImplementedError
 
+    def family(self, shape):
+        """Which of the effect's non-nested shape families a shape belongs to (each with its own
+        continuous parameter); one family unless an effect says otherwise."""
+        return None
+
     def continuous(self, ctx, shape):
         """A shape's continuous parameter (a time constant, a width), refined between the
         grid's neighbours by maximum likelihood: (log value, log lo, log hi, shape of a log
@@ -291,6 +296,9 @@ class Drift(Effect):
             p.cache[key] = c
         return p.cache[key]
 
+    def family(self, shape):
+        return shape[0]
+
     def continuous(self, ctx, shape):
         f, tau = shape
         if f == "linear":
@@ -332,7 +340,37 @@ class TempQuantization(Effect):
         return np.column_stack([e, e * p.d, e * p.r[:, axis]])
 
 
+class UnloggedStep(Effect):
+    """Not a catalogue effect: the alternative an effect must beat to be claimed. A first-order
+    step of the offset at a time nothing logged marks (humidity, a mounting stress relaxing,
+    a neighbour switching on): 0 before t0, 1 - exp(-(t - t0)/tau) after. Its cause is tied to
+    the clock, not to the temperature history or the power-on, so an effect that fits only
+    because the temperature programme or the time since power-on happens to correlate with
+    such a step fits no better than it. Never applied to a withheld log (its time there is
+    unknown); t0 stays clear of the log's ends, where it would be a warm-up (drift) or
+    nothing at all."""
+    name = "unlogged_step"
+    EDGE = 0.05      # t0 within the middle 90 % of the log
+    N_T0 = 24
+    N_TAU = 6
+
+    def shapes(self, ctx):
+        lo, hi = ctx.t_first + self.EDGE * ctx.span, ctx.t_first + (1 - self.EDGE) * ctx.span
+        taus = np.geomspace(ctx.span / 100, ctx.span / 2, self.N_TAU)
+        return [(float(t0), float(tau)) for t0 in np.linspace(lo, hi, self.N_T0) for tau in taus]
+
+    def columns(self, ctx, p, shape, axis):
+        t0, tau = shape
+        key = ("step", t0, tau)
+        if key not in p.cache:
+            x = np.maximum(p.log.t - t0, 0.0) / tau
+            p.cache[key] = (-np.expm1(-x))[:, None]
+        return p.cache[key]
+
+
 EFFECTS = [OffsetTemperature(), SensitivityTemperature(), Hysteresis(), TempRate(), CrossAxis(),
            Nonlinearity(), GSensitivity(), Supply(), Drift(), TurnOnBias(), TempQuantization()]
 BY_NAME = {e.name: e for e in EFFECTS}
 assert tuple(BY_NAME) == CATALOGUE
+STEP = UnloggedStep()
+BY_NAME[STEP.name] = STEP     # for the fit only: never a candidate, never in a verdict

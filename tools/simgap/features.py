@@ -19,6 +19,7 @@ class Context:
         dt = np.diff(train.t)
         self.dt = float(np.median(dt[dt > 0])) if np.any(dt > 0) else 1.0
         self.span = max(float(train.t[-1] - train.t[0]), 10 * self.dt)
+        self.t_first = float(train.t[0])
         if train.run is not None:
             on = prep.run_starts(train)
             self.run_span = max(float(np.max(train.t - train.t[on])), 10 * self.dt)

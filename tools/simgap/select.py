@@ -30,6 +30,10 @@ Z_WANDER = 3.72      # stage B, the likelihood-ratio test of the winner per axis
                      # correction (z of that p-value); a log without effects meets ~10 such
                      # tests (winners per axis and step), so ~1e-3 false claims per log
 ALPHA_INSAMPLE = 1e-3  # stage A's in-sample path: family-wise false-positive rate per step
+Z_STEP = 1.96        # the unlogged-step check: an effect must still add to the best step of the
+                     # offset at an unlogged time at one-sided 2.5 % (it already passed Z_WANDER
+                     # against the wander; this asks only whether an off-catalogue cause is an
+                     # adequate explanation, so a conventional level, not a family-wise one)
 RIVAL = 0.8          # a rival this close to the winner, absorbed by it, is not identifiable
 
 # Experiments that separate two effects the data confounds.
@@ -75,6 +79,8 @@ class Greedy:
         self.untried = {}
         self.avail = {}
         self.wander = []                        # (effect, axis, z, kind of wander, shape)
+        self.swapped = []                       # effects a confusable rival replaced
+        self.stepped = []                       # effects an unlogged step explains as well
         self._ncand = 1
         self._noise_cache = {}
         self.noise_info = {}
@@ -203,7 +209,7 @@ class Greedy:
         f = int(np.argmax(share))
         return f if share[f] > 0.5 * tot else None
 
-    def _refine(self, axis, others, name, shape):
+    def _refine(self, axis, others, name, shape, model=None):
         """The shape's continuous parameter (time constant, width) by maximum likelihood of
         the GLS fit under the axis's noise model, between the grid's neighbours (scipy's
         bounded Brent search): a grid spaced by 2x leaves a warm-up or a lag mis-timed by
@@ -212,7 +218,7 @@ class Greedy:
         if c is None:
             return shape
         x0, lo, hi, build = c
-        model = self.prob.noise[axis]
+        model = model or self.prob.noise[axis]
 
         def f(x):
             return -self.prob.loglik(axis, others + [(name, build(x))], model)[0]
@@ -412,6 +418,87 @@ class Greedy:
                     break
             self.cur[a] = self.prob.evaluate(a, self.state[a], withheld=False)
 
+    def swap(self):
+        """The greedy path can lock in the wrong one of two effects the catalogue lists as
+        confusable (NEEDS: a thermal lag and a hysteresis both split heating from cooling): it
+        may enter on an axis because it is established on another, or the held-out segments
+        may judge the right one by how its columns extrapolate into one segment. Each chosen
+        effect is compared with each such rival not on the axis, both with the axis's other
+        effects in, by the profile likelihood (the noise model re-estimated with each in) less
+        0.5 ln n per column (BIC), the rival at its best shape (grid by BIC under the axis's
+        noise model, then its continuous parameter); the better one stays. The winner still
+        faces prune(), the unlogged-step check and the withheld log."""
+        for a in range(3):
+            n = len(self.cur[a]["ins"])
+            model = self.prob.noise[a]
+            for i, (name, shape) in enumerate(list(self.state[a])):
+                others = self.state[a][:i] + self.state[a][i + 1:]
+                have = {b for b, _ in self.state[a]}
+                best = (self.noise_for(a, self.state[a])["profile"]
+                        - 0.5 * self._effect_df(a, name, shape) * np.log(n), name, shape)
+                for rival in sorted(self.avail):
+                    if (rival in have or a not in self.avail[rival] or BY_NAME[rival].per_run
+                            or frozenset({name, rival}) not in NEEDS):
+                        continue
+                    grid = BY_NAME[rival].shapes_given(self.prob.ctx, others)
+                    sh = min(grid, key=lambda s_: -self.prob.loglik(a, others + [(rival, s_)], model)[0]
+                             + 0.5 * self._effect_df(a, rival, s_) * np.log(n))
+                    sh = self._refine(a, others, rival, sh, model)
+                    v = (self.noise_for(a, others + [(rival, sh)])["profile"]
+                         - 0.5 * self._effect_df(a, rival, sh) * np.log(n))
+                    if v > best[0]:
+                        best = (v, rival, sh)
+                if best[1] != name:
+                    self.state[a][i] = (best[1], best[2])
+                    self.swapped.append({"effect": name, "axis": a, "by": best[1]})
+                    self.cur[a] = self.prob.evaluate(a, self.state[a], withheld=False)
+
+    def _profile_bic(self, a, others, name, shape, n):
+        """Profile log-likelihood of others + (name, shape) less 0.5 ln n per column."""
+        info = self.noise_for(a, others + [(name, shape)])
+        return info["profile"] - 0.5 * self._effect_df(a, name, shape) * np.log(n)
+
+    def reshape(self):
+        """Choose between an effect's shape families (a warm-up as one exponential, exponential
+        plus a trend, or hyperbolic) each at its own best continuous parameter, by the profile
+        likelihood (the noise model re-estimated with each shape in) less 0.5 ln n per column.
+        On the grid the families are compared at time constants up to 2.3x off the true one,
+        where a wrong family with a walk taking the rest can tie or win; the family chosen
+        there then carries the wrong tail onto a new power-on. Effects with one family keep
+        the shape of refine()."""
+        for a in range(3):
+            n = len(self.cur[a]["ins"])
+            changed = False
+            for i, (name, shape) in enumerate(list(self.state[a])):
+                e = BY_NAME[name]
+                others = self.state[a][:i] + self.state[a][i + 1:]
+                grid = e.shapes_given(self.prob.ctx, others)
+                if len({e.family(sh) for sh in grid}) < 2:
+                    continue
+
+                # Per family: the grid's best under the axis's noise model (cheap), its
+                # continuous parameter refined, then the profile likelihood there.
+                model = self.prob.noise[a]
+                fams = {}
+                for sh in grid:
+                    v = self.prob.loglik(a, others + [(name, sh)], model)[0] \
+                        - 0.5 * self._effect_df(a, name, sh) * np.log(n)
+                    f = e.family(sh)
+                    if f not in fams or v > fams[f][0]:
+                        fams[f] = (v, sh)
+                best = None
+                for f, (_, sh) in fams.items():
+                    sh = self._refine(a, others, name, sh, model)
+                    v = self._profile_bic(a, others, name, sh, n)
+                    if best is None or v > best[0]:
+                        best = (v, sh)
+                cur = self._profile_bic(a, others, name, shape, n)
+                if best[0] > cur and not _same_shape(best[1], shape):
+                    self.state[a][i] = (name, best[1])
+                    changed = True
+            if changed:
+                self.cur[a] = self.prob.evaluate(a, self.state[a], withheld=False)
+
     def prune(self):
         """Backward check with the whole model in place: each chosen effect must still beat
         the model without it whose noise model may wander (stage B against everything else
@@ -433,6 +520,38 @@ class Greedy:
                                     "kind": N.describe(worst[2]["model"], self.sigma[a]),
                                     "shape": shape})
                 del self.state[a][worst[0]]
+        return removed
+
+    def unlogged(self):
+        """Could an offset step at a time nothing logged explain the effect? (an off-catalogue
+        cause: humidity, a stress relaxing, a neighbour switching on). The best step (effects.
+        UnloggedStep, its onset and time constant by likelihood under the axis's noise model)
+        goes in first; the effect must still add to it by the likelihood-ratio test of
+        _wander_check, each model under its own profiled noise model, at z > Z_STEP. A
+        temperature-driven effect that fits only because the temperature programme happens to
+        correlate with the step, or a drift that is the step's slow tail, adds nothing once the
+        step is in; a real lag, loop or warm-up keeps most of its gain (it repeats with every
+        ramp or starts at the power-on, which no single step does). Per-run effects are not
+        judged (a step cannot take a per-power-on constant's place). Returns [(effect, axis,
+        z)] of the effects taken out."""
+        removed = []
+        step = BY_NAME["unlogged_step"]
+        shapes = step.shapes(self.prob.ctx)
+        for a in range(3):
+            for name, shape in list(self.state[a]):
+                if BY_NAME[name].per_run:
+                    continue
+                others = [b for b in self.state[a] if b[0] != name]
+                model = self.prob.noise[a]
+                best = max(shapes, key=lambda sh: self.prob.loglik(
+                    a, others + [(step.name, sh)], model)[0])
+                base = others + [(step.name, best)]
+                z, gain, i0 = self._wander_check(a, base, base + [(name, shape)], name)
+                if z < Z_STEP:
+                    removed.append((name, a, z))
+                    self.state[a] = [b for b in self.state[a] if b[0] != name]
+                    self.stepped.append({"effect": name, "axis": a, "z": z, "gain": gain,
+                                         "step": best})
         return removed
 
     def finalise(self):
@@ -484,6 +603,10 @@ WANDER_NEEDS = {
                  "does not",
     "hysteresis": "a repeated temperature cycle: the loop repeats, a wander does not",
 }
+
+STEP_NEEDS = ("a log of the suspected cause (humidity, supply, mounting), or a repeat of the "
+              "temperature programme: an effect repeats with its cause, a step at an unlogged "
+              "time does not")
 
 
 def wander_needs(name):
