@@ -80,6 +80,7 @@ class Greedy:
         self.avail = {}
         self.wander = []                        # (effect, axis, z, kind of wander, shape)
         self.swapped = []                       # effects a confusable rival replaced
+        self.borrowed = set()                   # (effect, axis) taken in as established elsewhere
         self.stepped = []                       # effects an unlogged step explains as well
         self._ncand = 1
         self._noise_cache = {}
@@ -373,6 +374,8 @@ class Greedy:
                                             "shape": v["shape"]})
                     continue
                 pool[win].remove(a)
+                if not v["significant"]:
+                    self.borrowed.add((win, a))
                 self.state[a].append((win, v["shape"]))
                 self.cur[a] = v["res"]
                 self.record[(win, a)] = v
@@ -419,11 +422,12 @@ class Greedy:
             self.cur[a] = self.prob.evaluate(a, self.state[a], withheld=False)
 
     def swap(self):
-        """The greedy path can lock in the wrong one of two effects the catalogue lists as
-        confusable (NEEDS: a thermal lag and a hysteresis both split heating from cooling): it
-        may enter on an axis because it is established on another, or the held-out segments
-        may judge the right one by how its columns extrapolate into one segment. Each chosen
-        effect is compared with each such rival not on the axis, both with the axis's other
+        """An effect that entered an axis only because it was established on another (run():
+        the held-out segments of this axis never judged it significant) may be the wrong one
+        of two effects the catalogue lists as confusable (NEEDS: a thermal lag and a
+        hysteresis both split heating from cooling), its rival kept out by how its columns
+        extrapolate into one held-out segment. Each such effect is compared with each
+        confusable rival not on the axis, both with the axis's other
         effects in, by the profile likelihood (the noise model re-estimated with each in) less
         0.5 ln n per column (BIC), the rival at its best shape (grid by BIC under the axis's
         noise model, then its continuous parameter); the better one stays. The winner still
@@ -432,6 +436,8 @@ class Greedy:
             n = len(self.cur[a]["ins"])
             model = self.prob.noise[a]
             for i, (name, shape) in enumerate(list(self.state[a])):
+                if (name, a) not in self.borrowed:
+                    continue
                 others = self.state[a][:i] + self.state[a][i + 1:]
                 have = {b for b, _ in self.state[a]}
                 best = (self.noise_for(a, self.state[a])["profile"]

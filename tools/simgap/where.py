@@ -64,6 +64,7 @@ def localise(p, resid, sigma, ctx, top=40):
         rc = clipped[a]
         if totals[a] <= 9 * sigma[a] ** 2 * np.sqrt(2 * n0):
             continue
+        found = False
         for dim, lo, hi, m in _cells(p, a, ctx):
             m = m & m0
             n = int(m.sum())
@@ -81,6 +82,21 @@ def localise(p, resid, sigma, ctx, top=40):
                         "share": round(share, 4), "n": n, "mean": mean,
                         "rms": float(np.sqrt(np.mean(rc[m] ** 2))),
                         "excess": e,
+                        "z": float(mean / (sigma[a] / np.sqrt(n))) if sigma[a] > 0 else 0.0})
+            found = True
+        if not found:
+            # The axis's excess is beyond noise but spread so evenly (a coarse temperature
+            # reading's sawtooth, a small misfit everywhere) that no cell holds enough of it
+            # to pass on its own: a cell's excess grows with n, its noise threshold with
+            # sqrt(n), so an even spread is significant only over the whole log. Say so with
+            # one cell over the whole temperature range rather than an empty map.
+            m = m0
+            n = int(m.sum())
+            mean = float(np.mean(rc[m]))
+            out.append({"axis": AXES[a], "dimension": "temperature",
+                        "from": round(float(ctx.tmin), 4), "to": round(float(ctx.tmax), 4),
+                        "share": round(min(1.0, totals[a] / overall), 4), "n": n, "mean": mean,
+                        "rms": float(np.sqrt(np.mean(rc[m] ** 2))), "excess": totals[a],
                         "z": float(mean / (sigma[a] / np.sqrt(n))) if sigma[a] > 0 else 0.0})
     out.sort(key=lambda c: -c["share"])
     return out[:top]
