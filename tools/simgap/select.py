@@ -528,6 +528,34 @@ class Greedy:
                 del self.state[a][worst[0]]
         return removed
 
+    def _best_column(self, a, blocks, effect, shapes):
+        """The one-column shape that most lowers the GLS sum of squares of blocks + it under
+        the axis's noise model: each candidate column is whitened and projected off the
+        blocks' filtered design (one QR), so a grid of a hundred shapes costs a hundred
+        filter passes, not a hundred fits."""
+        p = self.prob
+        model = p.noise[a]
+        X, scale, Xs, nlev, st = p._train_design(a, blocks, model)
+        y = p._yw(a, model, st)
+        m = p.train.mask
+        if Xs.shape[1]:
+            Q = np.linalg.qr(Xs)[0]
+            u = y - Q @ (Q.T @ y)
+        else:
+            Q, u = None, y
+        best, gain = shapes[0], -1.0
+        for sh in shapes:
+            c = N.whiten(effect.columns(p.ctx, p.train, sh, a)[m], model, st)[:, 0]
+            if Q is not None:
+                c = c - Q @ (Q.T @ c)
+            cc = float(c @ c)
+            if cc <= 1e-12 * max(float(y @ y), 1e-300):
+                continue
+            g = float(u @ c) ** 2 / cc
+            if g > gain:
+                best, gain = sh, g
+        return best
+
     def unlogged(self):
         """Could an offset step at a time nothing logged explain the effect? (an off-catalogue
         cause: humidity, a stress relaxing, a neighbour switching on). The best step (effects.
@@ -548,9 +576,7 @@ class Greedy:
                 if BY_NAME[name].per_run:
                     continue
                 others = [b for b in self.state[a] if b[0] != name]
-                model = self.prob.noise[a]
-                best = max(shapes, key=lambda sh: self.prob.loglik(
-                    a, others + [(step.name, sh)], model)[0])
+                best = self._best_column(a, others, step, shapes)
                 base = others + [(step.name, best)]
                 z, gain, i0 = self._wander_check(a, base, base + [(name, shape)], name)
                 if z < Z_STEP:
