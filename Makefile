@@ -13,6 +13,9 @@ BOARD ?= virtual
 BOARD_TCP ?= 2323
 VBOARD := $(PY) -m tools board
 PYTEST_ARGS ?=
+# make test runs the suite in this many pytest-xdist workers, a test file per worker at a time (its
+# module fixtures stay in one process); the machines it must finish on in 10 minutes have 2 cores
+TEST_JOBS ?= 2
 MICROPY_SRC ?=
 CIRCUITPY_SRC ?=
 
@@ -35,7 +38,7 @@ $(NODE_MODULES)/.stamp: tools/package.json tools/package-lock.json
 
 test: setup typecheck
 	$(PY) -m ruff check lib boards tools host_tests
-	$(PY) -m pytest -q $(PYTEST_ARGS)
+	$(PY) -m pytest -q -n $(TEST_JOBS) --dist loadfile $(PYTEST_ARGS)
 
 typecheck: setup
 	$(NODE_MODULES)/.bin/pyright -p pyrightconfig.json

@@ -12,7 +12,8 @@ do not depend on the machine are what the code gives now.
   bias left by a calibration of the simulated part) are computed again here and must agree to the
   record's six significant digits; instruction counts, heap figures and the augmented-model table
   are checked by the tests that compute them (host_tests/augment/test_export_replay.py compares
-  its before/after figures with the record). Timing figures are only required to be the record's:
+  its before/after figures with the record); the blind benchmark's scores, deterministic but minutes
+  to compute, by the fingerprint of the code that measured them (host_tests/simgap/test_simgap_blind.py). Timing figures are only required to be the record's:
   a run on another machine, or under another load, gives others.
 
 When this fails after a change that moves figures: ``python -m tools bench AREA`` (or ``make

@@ -5,7 +5,12 @@ seed, which pytest prints at the end of every run (host_tests/conftest.py):
     TEMPCOMP_SEED=123456 make test
 
 ``seed(name)`` is the run's seed for one use (a test or a data set), ``seeds(name, n)`` n of them;
-the same TEMPCOMP_SEED gives the same numbers to the same names."""
+the same TEMPCOMP_SEED gives the same numbers to the same names. The gap diagnosis' blind sets take
+their own seeds, GAP_SEED and WANDER_SEED (their tools' --seed), drawn here too.
+
+Every seed drawn is put in the environment: pytest-xdist's workers are processes started after this
+module runs in the controller, and each one must draw the same data (and the seeds printed at the
+end must be the ones the tests used)."""
 import os
 import random
 import zlib
@@ -24,6 +29,11 @@ def _run_seed():
 
 
 RUN = _run_seed()
+os.environ[ENV] = str(RUN)
+BLIND = ("GAP_SEED", "WANDER_SEED")
+for _name in BLIND:
+    if not os.environ.get(_name, "").strip():
+        os.environ[_name] = str(random.SystemRandom().randint(1, 100000))
 
 
 def seed(name, k=0):
@@ -36,4 +46,5 @@ def seeds(name, n):
 
 
 def note():
-    return "%s=%d (this run's random data; set it to repeat them)" % (ENV, RUN)
+    return "%s=%d %s (this run's random data; set them to repeat it)" % (
+        ENV, RUN, " ".join("%s=%s" % (n, os.environ[n]) for n in BLIND))

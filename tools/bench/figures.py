@@ -565,7 +565,7 @@ def gapcheck(r):
         "Blind benchmark (`make gap-check`, %s cases, seed 1; `python -m tools bench gapcheck`, %s): every single "
         "effect named first (%s), both effects of every pair (%s), nothing claimed on the no-effect cases (%s), "
         "\"where\" by excess over the floor right in %s, final withheld RMS within 25 %% of the true noise in %s "
-        "(worst %.2fx); the reduced set in the tests (%s cases, seed 7) %s." % (
+        "(worst %.2fx); the reduced set (%s cases, which the tests run at a seed drawn per run) at seed 7 %s." % (
             g.full_where_n, g.date, f("singles"), f("pairs"), f("nones"), f("where"), f("shrink"),
             g.full_worst_ratio.value, g.reduced_where_n,
             "meets every target too" if reduced else "misses a target (see `python -m tools bench gapcheck`)"))

@@ -1,9 +1,22 @@
 """`make bench` figures of the gap diagnosis' blind benchmark (tools/gapbench/check.py, what
 `make gap-check` runs): the scores of the full set (27 cases, seed 1) and of the reduced set the
 tests run (host_tests/simgap/test_simgap_blind.py, seed 7), each a check (a missed target makes
-`make bench` exit 1). Deterministic: the generator and the diagnosis are seeded."""
+`make bench` exit 1). Deterministic: the generator and the diagnosis are seeded, so the figures
+belong to the code that gave them: the record keeps a fingerprint of that code (``source``), and
+host_tests/simgap/test_simgap_blind.py fails when the code differs from it (a change that was not
+measured again), instead of running the set again at the record's seed on every `make test`."""
 
+import glob
+import hashlib
+import os
+
+from tools import REPO
 from tools.gapbench import check as gapcheck
+
+# what the scores depend on: the diagnosis, the project's generator and scoring, this file, and the
+# versions of the host libraries that compute the numbers
+SOURCES = ("tools/simgap/*.py", "tools/gapbench/gen.py", "tools/gapbench/check.py", "tools/bench/gapcheck.py")
+LIBRARIES = ("numpy", "scipy", "pandas", "statsmodels", "arch", "AllanTools")
 
 SETS = (("full", 1, True), ("reduced", 7, False))
 
@@ -20,7 +33,24 @@ def scores(rows):
             "shrink": (sum(r["shrink_ok"] for r in rows), len(rows))}
 
 
+def source():
+    """sha256 (first 16 hex digits) of SOURCES' bytes, file by file in sorted path order, and of
+    LIBRARIES' installed versions."""
+    from importlib import metadata
+
+    h = hashlib.sha256()
+    for lib in LIBRARIES:
+        h.update(("%s==%s\n" % (lib, metadata.version(lib))).encode())
+    for pattern in SOURCES:
+        for path in sorted(glob.glob(os.path.join(REPO, pattern))):
+            h.update(os.path.relpath(path, REPO).replace(os.sep, "/").encode())
+            with open(path, "rb") as f:
+                h.update(f.read())
+    return h.hexdigest()[:16]
+
+
 def bench(report):
+    report("gapcheck: fingerprint of the code measured", source(), "", key="source")
     for name, seed, full in SETS:
         rows = gapcheck.run(seed=seed, full=full)
         for key, (hits, n) in scores(rows).items():
