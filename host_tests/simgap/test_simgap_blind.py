@@ -50,7 +50,7 @@ def test_nothing_claimed_without_an_effect(rows):
 
 # Issue 22 is open: these two missed on some seeds of the reduced set (docs/simgap.md), so at a
 # random seed they can fail; a miss is reported as XFAIL (with its seed), a pass as XPASS. The
-# noise branch's fixes (dfe2275) pass both at the seeds that missed (1, 3, 8, 9) and at 7, but fewer than 20
+# noise branch's fixes (dfe2275) pass both at seeds 1-9 (1, 3, 8, 9 were the misses), but fewer than 20
 # seeds of the new code were swept, so the markers stay until a 20-seed sweep shows 19.
 @pytest.mark.xfail(strict=False, reason="issue 22 open: main missed 1.25x at seed 1 of seeds 1-11 (the "
                    "drift + turn_on_bias pair, 1.36x on y; 1.05x since dfe2275); 20 seeds not swept")
