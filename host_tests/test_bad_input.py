@@ -44,7 +44,7 @@ def _strict(text):
 # -- valid inputs ------------------------------------------------------------------------------
 
 def _an12760_csv(unit=None):
-    rng = np.random.default_rng(4)
+    rng = np.random.default_rng(seeds.seed("bad_input/an12760"))
     head = "temp_c,ref_g,out_mg"
     rows = []
     for t in (-40.0, 25.0, 85.0):
@@ -58,7 +58,7 @@ def _an12760_csv(unit=None):
 
 
 def _adxrs_csv():
-    sim = AnalogGyroSim(vref_mv=3300, divider=2.0, noise_mv=0.5, t_noise_mv=0.3, seed=3)
+    sim = AnalogGyroSim(vref_mv=3300, divider=2.0, noise_mv=0.5, t_noise_mv=0.3, seed=seeds.seed("bad_input/adxrs"))
     q = 3300.0 * 2.0 / 65535
     rows = ["temp_c,vt_mv,rate_dps,out_mv"]
     for t in (-40.0, 25.0, 85.0):
@@ -71,7 +71,7 @@ def _adxrs_csv():
 
 
 def _sixpos_csv():
-    rng = np.random.default_rng(6)
+    rng = np.random.default_rng(seeds.seed("bad_input/sixpos"))
     raw = S.chamber(S.truth(1, rng), [-40.0, 25.0, 85.0], S.SIX, 2, 16384.0, rng)
     labels = ["+x", "-x", "+y", "-y", "+z", "-z"]
     rows = ["temp_c,orient,ax,ay,az"]
@@ -82,8 +82,8 @@ def _sixpos_csv():
     return "\n".join(rows) + "\n"
 
 
-def _gap_log(path, seed=0):
-    log = simgap_synth.make(n=300, seed=seed)
+def _gap_log(path, k=0):
+    log = simgap_synth.make(n=300, seed=seeds.seed("bad_input/gap_log", k))
     cols = {"time_s": log.t, "temp_c": log.temp}
     for a, ax in enumerate("xyz"):
         cols["out_" + ax] = log.out[:, a]
@@ -155,7 +155,7 @@ def _t_gap(d):
 def _t_gap_withheld(d):
     _gap_log(d / "train.csv")
     f = d / "held.csv"
-    _gap_log(f, seed=1)
+    _gap_log(f, k=1)
     o = d / "gap.json"
     return f, ["gap", str(d / "train.csv"), "--withheld", str(f), "--json", str(o), "--quiet"], [o]
 

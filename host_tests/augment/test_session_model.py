@@ -25,7 +25,8 @@ def mpu_board():
 
 @pytest.fixture(scope="module")
 def model_file(tmp_path_factory):
-    tr, wh = augsynth.make("drift"), augsynth.make("drift", withheld=True)
+    k = seeds.seed("session_model/log")  # the logs of this run
+    tr, wh = augsynth.make("drift", seed=k), augsynth.make("drift", withheld=True, seed=k)
     res, _ = diagnose(tr, wh)
     path = tmp_path_factory.mktemp("m") / "model.json"
     export.write(str(path), res, tr)

@@ -7,6 +7,7 @@ import sys
 
 import augsynth
 import numpy as np
+import seeds
 from paths import REPO
 
 from tools.firmware import mpvm
@@ -15,7 +16,8 @@ from tools.simgap.diagnose import diagnose
 
 
 def test_put_then_restore_on_the_board_compensates_the_same(tmp_path):
-    tr, wh = augsynth.make("supply"), augsynth.make("supply", withheld=True)
+    k = seeds.seed("store_put/log")  # the logs of this run
+    tr, wh = augsynth.make("supply", seed=k), augsynth.make("supply", withheld=True, seed=k)
     res, _ = diagnose(tr, wh)
     model = tmp_path / "model.json"
     exp = export.write(str(model), res, tr)

@@ -8,6 +8,7 @@ import subprocess
 import sys
 
 import augsynth
+import seeds
 from paths import REPO
 
 from tools.firmware import mpvm
@@ -28,8 +29,9 @@ def write(path, log):
 
 
 def test_shell_block_then_board_block(tmp_path):
-    write(str(tmp_path / "TRAIN.csv"), augsynth.make("hysteresis"))
-    write(str(tmp_path / "HELD.csv"), augsynth.make("hysteresis", withheld=True))
+    k = seeds.seed("augment_docs/log")  # the logs of this run
+    write(str(tmp_path / "TRAIN.csv"), augsynth.make("hysteresis", seed=k))
+    write(str(tmp_path / "HELD.csv"), augsynth.make("hysteresis", withheld=True, seed=k))
     (tmp_path / "out").mkdir()
     shell = [b for lang, b in blocks() if lang == ""][0]
     env = dict(os.environ, PYTHONPATH=REPO)

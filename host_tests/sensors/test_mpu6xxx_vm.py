@@ -20,13 +20,16 @@ from tempcomp.mpu6xxx_tc import BiasModel
 from tools.sim.buses import SimI2C
 from tools.sim.mpu6xxx_sim import FACES, MPU6xxxSim
 
+# the VM check's simulated parts: VM_SEED .. VM_SEED + 4 (mpu6xxx_vmcheck.main), other parts every run
+VM_SEED = seeds.seed("mpu6xxx_vm/parts") % 1000000
+
 
 @pytest.fixture(scope="module")
 def vm_out(interp):
     # on every interpreter (the interp fixture): the WebAssembly VM, Cortex-M3/M7 firmware, CircuitPython
     return interps.run(
         interp,
-        "import mpu6xxx_vmcheck\nmpu6xxx_vmcheck.main()",
+        "import mpu6xxx_vmcheck\nmpu6xxx_vmcheck.main(%d)" % VM_SEED,
         mounts=(os.path.join(REPO, "tools", "sim") + ":/tools/sim",),
         paths=("/",),
     )
@@ -75,7 +78,7 @@ def test_vm_integers_match_cpython(vm_out, interp):
 
     t0 = 4000
     model = BiasModel(chk.model_points(t0))
-    sim = MPU6xxxSim("MPU-6500", seed=5)
+    sim = MPU6xxxSim("MPU-6500", seed=VM_SEED + 4)  # the VM's compensation_grid part
     sim.regs[0x1B] = 0x18
     sim.regs[0x1C] = 0x00
     imu = MPU6xxx(SimI2C({0x68: sim}))
@@ -123,7 +126,7 @@ from tempcomp.mpu6xxx import MPU6xxx
 from tempcomp.mpu6xxx_tc import BiasModel, compiled
 from tools.sim.buses import SimI2C
 from tools.sim.mpu6xxx_sim import MPU6xxxSim
-sim = MPU6xxxSim("MPU-6500", seed=1)
+sim = MPU6xxxSim("MPU-6500", seed=PART_SEED)
 imu = MPU6xxx(SimI2C({0x68: sim}))
 for i, (mi, fs, g, a, ts) in enumerate(CASES_):
     sim.regs[0x1B] = fs[0]
@@ -148,11 +151,12 @@ for i, (mi, fs, g, a, ts) in enumerate(CASES_):
 
 def test_setup_integers_identical_on_every_interpreter(interp):
     cases = random_cases(24, seed=seeds.seed("mpu6xxx_vm_models"))
-    out = interps.run(interp, SETUP.replace("CASES_", repr(cases)),
+    part = seeds.seed("mpu6xxx_vm/setup_part")
+    out = interps.run(interp, SETUP.replace("CASES_", repr(cases)).replace("PART_SEED", str(part)),
                       mounts=(os.path.join(REPO, "tools", "sim") + ":/tools/sim",), paths=("/",), timeout=600)
     from tempcomp.mpu6xxx_tc import compiled
 
-    sim = MPU6xxxSim("MPU-6500", seed=1)
+    sim = MPU6xxxSim("MPU-6500", seed=part)
     imu = MPU6xxx(SimI2C({0x68: sim}))
     lines = iter(out.splitlines())
     n = 0
@@ -185,7 +189,7 @@ def _worst_against_float64(cases):
     # points, the registers' datasheet scales, out = 1000 * (raw - offset(T)) / sensitivity
     import numpy as np
 
-    sim = MPU6xxxSim("MPU-6500", seed=1)
+    sim = MPU6xxxSim("MPU-6500", seed=seeds.seed("mpu6xxx_vm/float_part"))
     imu = MPU6xxx(SimI2C({0x68: sim}))
     raws = np.arange(-32768, 32768, 257)
     worst = 0.0

@@ -3,6 +3,7 @@
 
 import interps
 import numpy as np
+import seeds
 from paths import REPO
 
 from tempcomp.an12760 import AN12760
@@ -60,7 +61,7 @@ def acc_be16():
 allocprobe.report("an12760_be16", acc_be16, (), 300)
 
 # analog gyro: simulated sensor in the VM for set-up, replayed codes for the hot path
-sim = AnalogGyroSim(vref_mv=3300, divider=2.0, noise_mv=0.3, t_noise_mv=0.2, bits=12, seed=3)
+sim = AnalogGyroSim(vref_mv=3300, divider=2.0, noise_mv=0.3, t_noise_mv=0.2, bits=12, seed=GYRO_SEED)
 g = AnalogGyro(sim.rate, sim.temp, 3300, divider=2.0)
 pts = adxrs_cal.three_point(g, sim, (-40, 25, 85))
 g.set_three_point(pts[0], pts[1], pts[2])
@@ -121,7 +122,7 @@ def test_vm_results_and_zero_allocation(interp):
     G = [-1.0, 0.0, 1.0] * 3
     raw = [int(round(v * 16.384)) for v in F.simulate_mg(np.array(T, float), np.array(G), -20.0, 1.0, 0.0264, -0.001)]
     code = VM_CODE.replace("ROWS", repr(list(zip(T, raw)))).replace("LAW0", repr(LAW0)).replace(
-        "LAW1", repr(LAW1)).replace("CODES", repr(CODES))
+        "LAW1", repr(LAW1)).replace("CODES", repr(CODES)).replace("GYRO_SEED", str(seeds.seed("vm_adinxp/gyro")))
     out = interps.run(interp, code, mounts=(REPO + "/tools/sim:/tools/sim",), paths=("/",))
     lines = {ln.split()[0]: ln.split()[1:] for ln in out.splitlines() if ln and not ln.startswith("ALLOC")}
     # AN12760 Table 10 AccTCOTCS in the VM: exactly -1000.0 / 0.0 / +1000.0 mg (0.1 mg units)

@@ -70,6 +70,7 @@ class Problem:
         self._seg_t = self._segment_starts(self.train)
         self._seg_w = self._segment_starts(self.withheld) if self.withheld is not None else None
         self._wcache = {}
+        self._rcache = {}
 
     def _segment_starts(self, p):
         """Start rows (in masked-row order) of the log's contiguous stretches."""
@@ -141,10 +142,7 @@ class Problem:
             Xw = np.column_stack([Xw0, N.whiten(Xn, model, st)])
             nlev = 0
         else:
-            X = self._design(self.train, axis, blocks)[m]
-            if per_run:
-                runs = np.unique(self.runs_m)
-                X = np.column_stack([X, (self.runs_m[:, None] == runs[None, :]).astype(float)])
+            X = self._raw_design(axis, blocks, key[2], per_run)
             nlev = 0
             if model.walks and len(st) > 1:
                 L = N.level_columns(len(X), st, model)[:, 1:]
@@ -165,6 +163,24 @@ class Problem:
             if plain:
                 self._wcache[(axis, model.key(), key[2], "prefix")] = (X, Xw)
         return out
+
+    def _raw_design(self, axis, blocks, bkey, per_run):
+        """The unfiltered design on the masked training rows (with the per-run columns), which
+        does not depend on the noise model: the noise searches evaluate one design under
+        hundreds of noise models, and building it each time was a third of a long log's
+        diagnosis. Read-only, so a caller cannot change the cached copy."""
+        rkey = (axis, bkey)
+        X = self._rcache.pop(rkey, None)
+        if X is None:
+            X = self._design(self.train, axis, blocks)[self.train.mask]
+            if per_run:
+                runs = np.unique(self.runs_m)
+                X = np.column_stack([X, (self.runs_m[:, None] == runs[None, :]).astype(float)])
+            X.flags.writeable = False
+            while len(self._rcache) >= 12:      # at most 12 designs (30,000 rows: ~100 MB)
+                self._rcache.pop(next(iter(self._rcache)))
+        self._rcache[rkey] = X                  # most recently used last
+        return X
 
     def prime(self, axis, blocks):
         """Filter the state's design once, so each candidate filters only its own columns."""
