@@ -13,13 +13,16 @@ from tools.gapbench import wander, wandercheck
 SEED = int(os.environ.get("WANDER_SEED") or random.SystemRandom().randint(1, 100_000))
 EFFECT_SITUATIONS = [s for s in wander.SITUATIONS if s not in wandercheck.NO_VERDICT]
 
-# Checks that missed on some of the 20 seeds of the last sweep (docs/simgap.md, "The wander set",
-# python -m tools gap-check --set wander --seeds 1-20 --logs 1) would be listed here as known gaps
-# (XFAIL with the measured rate). The sweep of 2026-11-27 (noise branch, dfe2275) met every target
-# on 19 or 20 of 20 seeds per situation (off_catalogue: seed 9 claims a temp_rate on z; rw_drift:
-# seed 3 at 1.26x), so none is listed: at a random seed each of those two fails about 1 run in 20,
-# and the failure prints its seed (WANDER_SEED=N repeats it).
-KNOWN_GAPS = {}
+# Checks that missed on one of the 20 seeds of the last sweep (docs/simgap.md, "The wander set",
+# python -m tools gap-check --set wander --seeds 1-20 --logs 1; 2026-11-27, noise branch dfe2275).
+# Each meets issue 22's per-situation target (19 of 20 seeds), but at the random seed of a run it
+# fails about 1 run in 20, which would make CI red that often for a rate within the target: a miss is
+# reported as XFAIL with its seed and the measured rate, a pass as XPASS. Remove an entry once a
+# sweep shows 20/20 for it; every other check must pass at any seed.
+KNOWN_GAPS = {
+    ("no_verdict", "off_catalogue"): "issue 22: no verdict on 19/20 seeds (seed 9 claims a temp_rate on z)",
+    ("rms", "rw_drift"): "issue 22: within 1.25x on 19/20 seeds (seed 3: x at 1.26x)",
+}
 
 
 def _cases(check, situations):

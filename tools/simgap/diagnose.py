@@ -39,7 +39,7 @@ def _thin(log):
     """Every k-th row of a log longer than MAX_ROWS (k = ceil(n / MAX_ROWS)), and k. A
     temperature log's effects live over minutes; 30,000 rows resolve them, thinning keeps the
     noise model's family (white stays white, a walk's increments add), and the fit's cost and
-    memory stay bounded (1 M + 1 M rows within a minute on one core)."""
+    memory stay bounded (1 M + 1 M rows in about a minute on one core, docs/simgap.md)."""
     if log is None or len(log) <= MAX_ROWS:
         return log, 1
     k = int(np.ceil(len(log) / MAX_ROWS))
