@@ -33,6 +33,16 @@ def test_reduced_set_has_every_kind_of_case():
     assert sum(not c[1] for c in kinds) >= 3 and any(c[2] for c in kinds)
 
 
+# Issue 22: the reduced set with the noise branch's fixes (dfe2275), swept over seeds 1-20 (python -m
+# tools gap-check --small, seeds 1-9 by the noise branch, 10-20 on main 3e677d0, 2026-11-27): every
+# target at 19 of 20 seeds; at seed 20 the single offset_temperature case got no verdict (3.21x).
+# These two checks each hold on 19/20, within the issue's target, but at the random seed of a run
+# they fail about 1 run in 20: a miss is an XFAIL with its seed, a pass an XPASS. Every other check
+# here held on 20/20 and must pass at any seed.
+SEED_20 = "issue 22: 19/20 seeds of the reduced set (seed 20: offset_temperature not named, 3.21x)"
+
+
+@pytest.mark.xfail(strict=False, reason=SEED_20)
 def test_every_single_effect_named_first(rows):
     bad = [(r["case"], r["verdict"]) for r in rows if len(r["truth"]) == 1 and not r["attributed"]]
     assert not bad, "seed %d: %s" % (SEED, bad)
@@ -48,12 +58,7 @@ def test_nothing_claimed_without_an_effect(rows):
     assert not bad, "seed %d: %s" % (SEED, bad)
 
 
-# Issue 22 is open: these two missed on some seeds of the reduced set (docs/simgap.md), so at a
-# random seed they can fail; a miss is reported as XFAIL (with its seed), a pass as XPASS. The
-# noise branch's fixes (dfe2275) pass both at seeds 1-9 (1, 3, 8, 9 were the misses), but fewer than 20
-# seeds of the new code were swept, so the markers stay until a 20-seed sweep shows 19.
-@pytest.mark.xfail(strict=False, reason="issue 22 open: main missed 1.25x at seed 1 of seeds 1-11 (the "
-                   "drift + turn_on_bias pair, 1.36x on y; 1.05x since dfe2275); 20 seeds not swept")
+@pytest.mark.xfail(strict=False, reason=SEED_20)
 def test_withheld_residual_within_25_percent_of_true_noise(rows):
     bad = [(r["case"], round(r["ratio"], 3)) for r in rows if r["ratio"] > 1.25]
     assert not bad, "seed %d: %s" % (SEED, bad)
@@ -61,9 +66,6 @@ def test_withheld_residual_within_25_percent_of_true_noise(rows):
     assert all(r["ratio_before"] > 1.05 for r in rows if r["truth"])
 
 
-@pytest.mark.xfail(strict=False, reason="issue 22 open: main missed 'where' at seeds 3, 8, 9, 11 of 1-11 "
-                   "(the 1 degC reading's even excess: no cell alone significant; a whole-range cell "
-                   "since dfe2275, seeds 3, 8, 9 pass); 20 seeds not swept")
 def test_where_by_excess_over_the_floor(rows):
     # An effect case's top cell carries energy above the noise floor; a no-effect case lists none.
     bad = [r["case"] for r in rows if not r["where_ok"]]
