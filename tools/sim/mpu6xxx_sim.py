@@ -143,6 +143,21 @@ def _normal_table(seed):
             tab[i] = r * math.cos(2.0 * math.pi * u2)
             tab[i + 1] = r * math.sin(2.0 * math.pi * u2)
             i += 2
+        # 4096 deviates have a sample mean of about 1/64 sigma: a part would keep that as a fixed
+        # offset no average removes (3000 samples: 0.86 sigma of their mean). Centred and scaled,
+        # the table's mean is 0 and its deviation 1, so mean_output() is the sample's expectation.
+        m = 0.0
+        for v in tab:
+            m += v
+        m /= _NOISE_N
+        q = 0.0
+        for v in tab:
+            q += (v - m) * (v - m)
+        k = 1.0 / math.sqrt(q / _NOISE_N)
+        i = 0
+        while i < _NOISE_N:
+            tab[i] = (tab[i] - m) * k
+            i += 1
         _TABLES[seed] = tab
     return tab
 
