@@ -71,6 +71,8 @@ class Problem:
         self._seg_w = self._segment_starts(self.withheld) if self.withheld is not None else None
         self._wcache = {}
         self._rcache = {}
+        self._rcache_y = {}
+        self._ccache = {}
 
     def _segment_starts(self, p):
         """Start rows (in masked-row order) of the log's contiguous stretches."""
@@ -172,7 +174,15 @@ class Problem:
         rkey = (axis, bkey)
         X = self._rcache.pop(rkey, None)
         if X is None:
-            X = self._design(self.train, axis, blocks)[self.train.mask]
+            m = self.train.mask
+            cols = [] if self.model is not None else \
+                [self._masked(("base", axis), lambda: self._base_columns(self.train, axis)[m])]
+            for (name, shape), (_, sk) in zip(blocks, bkey):
+                e = BY_NAME[name]
+                if not e.per_run:
+                    cols.append(self._masked((name, sk, axis), lambda e=e, shape=shape:
+                                             e.columns(self.ctx, self.train, shape, axis)[m]))
+            X = np.column_stack(cols) if cols else np.zeros((int(m.sum()), 0))
             if per_run:
                 runs = np.unique(self.runs_m)
                 X = np.column_stack([X, (self.runs_m[:, None] == runs[None, :]).astype(float)])
@@ -182,6 +192,19 @@ class Problem:
         self._rcache[rkey] = X                  # most recently used last
         return X
 
+    def _masked(self, key, build):
+        """One effect's (or the sim's) columns on the masked training rows, kept for the
+        designs that share them (the state's effects recur in every candidate's design and
+        every continuous parameter a search tries); at most 64 blocks (30,000 rows: ~60 MB)."""
+        c = self._ccache.pop(key, None)
+        if c is None:
+            c = build()
+            c.flags.writeable = False
+            while len(self._ccache) >= 64:
+                self._ccache.pop(next(iter(self._ccache)))
+        self._ccache[key] = c
+        return c
+
     def prime(self, axis, blocks):
         """Filter the state's design once, so each candidate filters only its own columns."""
         self._train_design(axis, blocks, self.noise[axis])
@@ -189,7 +212,7 @@ class Problem:
     def _yw(self, axis, model, st):
         key = (axis, model.key(), "y")
         if key not in self._wcache:
-            self._wcache[key] = N.whiten(self.y_t[self.train.mask, axis], model, st)
+            self._wcache[key] = N.whiten(self._ymasked(axis), model, st)
         return self._wcache[key]
 
     def evaluate(self, axis, blocks, withheld=True, model=None):
@@ -285,16 +308,59 @@ class Problem:
         under the noise model, the effects' coefficients (and a walking bias's levels) at
         their GLS estimates and the scale concentrated out: maximised over the noise model's
         parameters, this is the profile likelihood of the state-space model."""
-        X, scale, Xs, nlev, st = self._train_design(axis, blocks, model)
-        y = self._yw(axis, model, st)
-        if X.shape[1]:
-            beta = _solve(Xs.T @ Xs, Xs.T @ y, RCOND if model.is_white else RCOND_WALK)
-            u = y - Xs @ beta
-        else:
-            u = y
+        u = self._loglik_uncached(axis, blocks, model)
+        if u is None:
+            X, scale, Xs, nlev, st = self._train_design(axis, blocks, model)
+            y = self._yw(axis, model, st)
+            if X.shape[1]:
+                beta = _solve(Xs.T @ Xs, Xs.T @ y, RCOND if model.is_white else RCOND_WALK)
+                u = y - Xs @ beta
+            else:
+                u = y
         n = len(u)
         s2 = max(float(np.dot(u, u)) / n, 1e-300)
         return -0.5 * n * (np.log(2 * np.pi * s2) + 1), s2
+
+    def _loglik_uncached(self, axis, blocks, model):
+        """The GLS innovations of loglik() for a noise model met once (a noise search tries
+        about a hundred, each once), or None where the cached path applies (a white model, or
+        the design already filtered under this model). One filter pass over the design and
+        the target together, the column scaling and the normal equations from one Gram
+        matrix: the same solve as _train_design + loglik without keeping the filtered copy,
+        its scaled copy, or evicting the state's cached designs."""
+        if model.is_white:
+            return None
+        per_run = any(BY_NAME[n].per_run for n, _ in blocks)
+        bkey = tuple((n, _shape_key(s)) for n, s in blocks)
+        key = (axis, model.key(), bkey)
+        plain = not per_run
+        if key in self._wcache or (blocks and plain and (axis, model.key(), bkey[:-1], "prefix")
+                                   in self._wcache):
+            return None
+        st = self.starts(self.train, axis, model)
+        X = self._raw_design(axis, blocks, bkey, per_run)
+        cols = [X]
+        if model.walks and len(st) > 1:
+            cols.append(N.level_columns(len(X), st, model)[:, 1:])
+        cols.append(self._ymasked(axis)[:, None])
+        Z = N.whiten(np.column_stack(cols), model, st)
+        k = Z.shape[1] - 1
+        y = Z[:, k]
+        if k == 0:
+            return y
+        Xw = Z[:, :k]
+        G = Xw.T @ Xw
+        n = len(y)
+        scale = np.sqrt(np.diag(G) / n)
+        scale[scale == 0] = 1.0
+        beta = _solve(G / np.outer(scale, scale), (Xw.T @ y) / scale, RCOND_WALK)
+        return y - Xw @ (beta / scale)
+
+    def _ymasked(self, axis):
+        key = ("ymasked", axis)
+        if key not in self._rcache_y:
+            self._rcache_y[key] = self.y_t[self.train.mask, axis]
+        return self._rcache_y[key]
 
     def _beta(self, axis, blocks, model=None):
         model = model or self.noise[axis]
