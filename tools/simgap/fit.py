@@ -43,6 +43,10 @@ class Problem:
         self.runs_m = self.runs_t[m]
         self._run_starts_m = np.flatnonzero(np.r_[False, np.diff(self.runs_m) != 0])
         self._idx = [np.flatnonzero(self.fold_m == f) for f in range(self.nfold)]
+        # The segments are contiguous (prep.folds): as slices their Gram matrices read the
+        # filtered design in place instead of copying each segment's rows.
+        self._sl = [slice(int(i[0]), int(i[-1]) + 1) if i.size and i[-1] - i[0] + 1 == i.size
+                    else i for i in self._idx]
         # A held-out segment scores only where the other segments have been: rows at a
         # temperature (or input) only that segment reaches would judge extrapolation, and a
         # shape that happens to bend the base model's extrapolation would read as an effect.
@@ -73,6 +77,7 @@ class Problem:
         self._rcache = {}
         self._rcache_y = {}
         self._ccache = {}
+        self._zraw = (None, None)
 
     def _segment_starts(self, p):
         """Start rows (in masked-row order) of the log's contiguous stretches."""
@@ -96,7 +101,9 @@ class Problem:
         """Filter restarts (masked-row indices) on prepared log p under the axis's noise model."""
         model = model or self.noise[axis]
         seg = self._seg_t if p is self.train else self._seg_w
-        t = p.log.t[p.mask]
+        if "t_masked" not in p.cache:
+            p.cache["t_masked"] = p.log.t[p.mask]
+        t = p.cache["t_masked"]
         return N.restarts(t, self.ctx.dt, seg, model)
 
     def _target(self, p):
@@ -224,9 +231,9 @@ class Problem:
         per_run = any(BY_NAME[n].per_run for n, _ in blocks)
         X, scale, Xs, nlev, st0 = self._train_design(axis, blocks, model)
         y = self._yw(axis, model, st0)
-        yr = self.y_t[self.train.mask, axis]
-        Gf = [Xs[i].T @ Xs[i] for i in self._idx]
-        bf = [Xs[i].T @ y[i] for i in self._idx]
+        yr = self._ymasked(axis)
+        Gf = [Xs[i].T @ Xs[i] for i in self._sl]
+        bf = [Xs[i].T @ y[i] for i in self._sl]
         G, b = sum(Gf), sum(bf)
         r_cv = np.empty_like(y)
         B = 0 if model.is_white else model.memory()
@@ -338,22 +345,25 @@ class Problem:
                                    in self._wcache):
             return None
         st = self.starts(self.train, axis, model)
-        X = self._raw_design(axis, blocks, bkey, per_run)
-        cols = [X]
-        if model.walks and len(st) > 1:
-            cols.append(N.level_columns(len(X), st, model)[:, 1:])
-        cols.append(self._ymasked(axis)[:, None])
-        Z = N.whiten(np.column_stack(cols), model, st)
+        zkey = (axis, bkey, tuple(st) if model.walks else ())
+        if self._zraw[0] != zkey:      # a noise search: one design under ~100 noise models
+            X = self._raw_design(axis, blocks, bkey, per_run)
+            cols = [X]
+            if model.walks and len(st) > 1:
+                cols.append(N.level_columns(len(X), st, model)[:, 1:])
+            cols.append(self._ymasked(axis)[:, None])
+            self._zraw = (zkey, np.column_stack(cols))
+        Z = N.whiten(self._zraw[1], model, st)
         k = Z.shape[1] - 1
         y = Z[:, k]
         if k == 0:
             return y
         Xw = Z[:, :k]
-        G = Xw.T @ Xw
+        G = Z.T @ Z
         n = len(y)
-        scale = np.sqrt(np.diag(G) / n)
+        scale = np.sqrt(np.diag(G)[:k] / n)
         scale[scale == 0] = 1.0
-        beta = _solve(G / np.outer(scale, scale), (Xw.T @ y) / scale, RCOND_WALK)
+        beta = _solve(G[:k, :k] / np.outer(scale, scale), G[:k, k] / scale, RCOND_WALK)
         return y - Xw @ (beta / scale)
 
     def _ymasked(self, axis):
