@@ -69,6 +69,9 @@ HISTORY = {
     ("docs/simgap.md", "| situation | seeds passed | named alone / no verdict | withheld RMS / oracle floor: median, "
                        "worst | misses |"): "one wander-set sweep (python -m tools gap-check --set wander, seeds "
                                             "1-20, one log each) on the noise branch (2026-11-27)",
+    ("docs/simgap.md", "| situation | named alone / no verdict | withheld RMS within 1.25x the oracle floor "
+                       "(median, worst of the worst axis) | misses |"): "the wander-set sweep over seeds 21-81 "
+                                                                       "(one log each) on main 6dce6f0 (2026-11-28)",
 }
 
 
