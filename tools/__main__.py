@@ -77,8 +77,12 @@ def main(argv=None):
         return 2
     try:
         return mod.main(rest)
-    except SystemExit as e:  # argparse's --help and usage errors
-        return e.code if isinstance(e.code, int) else (0 if e.code is None else 2)
+    except SystemExit as e:  # argparse's --help and usage errors (int), a command's own message (str)
+        if e.code is None or isinstance(e.code, int):
+            return e.code or 0
+        # as the interpreter does with SystemExit("why"): the message on stderr, exit status 1
+        sys.stderr.write("%s\n" % (e.code,))
+        return 1
     except OSError as e:
         # a file or directory the command could not read or write (an output under a plain
         # file, a full disk, no permission): one line naming it, like every other bad input

@@ -67,3 +67,41 @@ def test_mip_install_of_the_mpy_package_on_the_virtual_board(tmp_path, package):
     assert files == sorted([os.path.basename(rel)[:-3] + ".mpy" for rel in build_mpy.lib_sources()]
                            + ["native_m0.mpy", "augment_native_m0.mpy", "augment_vrun_m0.mpy"])
     assert "/lib/tempcomp/session.mpy /lib/tempcomp/mpu6xxx.mpy" in out, out
+
+
+def test_deploy_to_a_board_another_client_holds_is_one_line(tmp_path):
+    # the virtual board serves one client at a time (README, Security): a deploy while a terminal is
+    # attached must say so in one line, not end in mpremote's or subprocess's traceback
+    import socket
+
+    vb = VirtualBoard(str(tmp_path / "vb"))
+    try:
+        vb.start()
+        holder = socket.create_connection(("127.0.0.1", int(vb.url.rsplit(":", 1)[1])), timeout=10)
+        holder.sendall(b"\r")  # a terminal's first key: it now has the line (idle for far less than 30 s)
+        proc = subprocess.run([sys.executable, "-m", "tools", "deploy", "--port", vb.url, "--board", "virtual"],
+                              capture_output=True, text=True, timeout=120, cwd=REPO)
+        holder.close()
+    finally:
+        vb.stop()
+    assert proc.returncode == 1, proc.stdout + proc.stderr
+    assert "Traceback" not in proc.stderr, proc.stderr
+    err = [ln for ln in proc.stderr.splitlines() if ln.strip()]
+    assert len(err) == 1 and err[0].startswith("deploy: `mpremote mip` failed"), proc.stderr
+    assert vb.url in err[0] and "another client" in err[0], err[0]
+
+
+def test_deploy_without_a_board_says_how_to_start_one(tmp_path):
+    # through the front door (python -m tools / make deploy), a command's own SystemExit message
+    # reaches the user with exit status 1, as the interpreter itself would print it
+    import socket
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        free = s.getsockname()[1]  # nothing listens there once closed
+    env = dict(os.environ, BOARD_TCP=str(free))
+    proc = subprocess.run([sys.executable, "-m", "tools", "deploy"], capture_output=True, text=True,
+                          timeout=60, cwd=REPO, env=env)
+    assert proc.returncode == 1, proc.stdout + proc.stderr
+    err = proc.stderr.strip()
+    assert "\n" not in err and "127.0.0.1:%d" % free in err and "make board" in err, proc.stderr

@@ -62,8 +62,26 @@ def main(argv=None):
         return 1
     for cmd in deploy_commands(port, a.board, a.py):
         print("+ " + " ".join(cmd[2:]), flush=True)
-        subprocess.run(cmd, check=True)
+        proc = subprocess.run(cmd, stderr=subprocess.PIPE, text=True)
+        if proc.returncode == 0:
+            sys.stderr.write(proc.stderr)
+            continue
+        raise SystemExit(failure(port, cmd, proc.returncode, proc.stderr))
     return 0
+
+
+def failure(port, cmd, rc, stderr):
+    """One line for a failed mpremote step: its own last message, and what usually causes it."""
+    lines = [ln.strip() for ln in stderr.splitlines() if ln.strip()]
+    last = lines[-1] if lines else "no message"
+    msg = "deploy: `mpremote %s` failed (exit %d) on %s: %s" % (cmd[5], rc, port, last)
+    if port.startswith("socket://"):
+        # the virtual board serves one client at a time and closes a second one (tools/vboard/serial_tcp.mjs)
+        msg += ("; is another client (a REPL, an mpremote) attached to that board? It takes one at a time:"
+                " close the other one (`node tools/vboard/server.mjs --help`: --takeover lets a new one in)")
+    elif "disconnected" in last or "could not" in last.lower() or "failed to access" in last.lower():
+        msg += "; is the board plugged in, the port right and no other program (a serial monitor) holding it?"
+    return msg
 
 
 if __name__ == "__main__":

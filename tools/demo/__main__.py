@@ -519,6 +519,10 @@ def main(argv=None):
     diagnosed = steps.run("the diagnosis of the real log", gap_step)
 
     header(9, "the diagnosis on the board: export, store, restore, before/after on the withheld part")
+    if diagnosed and (pico or not virtual):
+        say("this step runs on the VM board, not on %s (README, The virtual Raspberry Pi Pico); "
+            "host_tests/pico/test_pico.py runs the augmented model on the RP2040 firmware"
+            % ("the virtual Pico" if pico else "the board on " + a.port))
     if diagnosed:
         from tools.demo import augment
 

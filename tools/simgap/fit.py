@@ -43,6 +43,10 @@ class Problem:
         self.runs_m = self.runs_t[m]
         self._run_starts_m = np.flatnonzero(np.r_[False, np.diff(self.runs_m) != 0])
         self._idx = [np.flatnonzero(self.fold_m == f) for f in range(self.nfold)]
+        # The segments are contiguous (prep.folds): as slices their Gram matrices read the
+        # filtered design in place instead of copying each segment's rows.
+        self._sl = [slice(int(i[0]), int(i[-1]) + 1) if i.size and i[-1] - i[0] + 1 == i.size
+                    else i for i in self._idx]
         # A held-out segment scores only where the other segments have been: rows at a
         # temperature (or input) only that segment reaches would judge extrapolation, and a
         # shape that happens to bend the base model's extrapolation would read as an effect.
@@ -71,6 +75,9 @@ class Problem:
         self._seg_w = self._segment_starts(self.withheld) if self.withheld is not None else None
         self._wcache = {}
         self._rcache = {}
+        self._rcache_y = {}
+        self._ccache = {}
+        self._zraw = (None, None)
 
     def _segment_starts(self, p):
         """Start rows (in masked-row order) of the log's contiguous stretches."""
@@ -94,7 +101,9 @@ class Problem:
         """Filter restarts (masked-row indices) on prepared log p under the axis's noise model."""
         model = model or self.noise[axis]
         seg = self._seg_t if p is self.train else self._seg_w
-        t = p.log.t[p.mask]
+        if "t_masked" not in p.cache:
+            p.cache["t_masked"] = p.log.t[p.mask]
+        t = p.cache["t_masked"]
         return N.restarts(t, self.ctx.dt, seg, model)
 
     def _target(self, p):
@@ -172,7 +181,15 @@ class Problem:
         rkey = (axis, bkey)
         X = self._rcache.pop(rkey, None)
         if X is None:
-            X = self._design(self.train, axis, blocks)[self.train.mask]
+            m = self.train.mask
+            cols = [] if self.model is not None else \
+                [self._masked(("base", axis), lambda: self._base_columns(self.train, axis)[m])]
+            for (name, shape), (_, sk) in zip(blocks, bkey):
+                e = BY_NAME[name]
+                if not e.per_run:
+                    cols.append(self._masked((name, sk, axis), lambda e=e, shape=shape:
+                                             e.columns(self.ctx, self.train, shape, axis)[m]))
+            X = np.column_stack(cols) if cols else np.zeros((int(m.sum()), 0))
             if per_run:
                 runs = np.unique(self.runs_m)
                 X = np.column_stack([X, (self.runs_m[:, None] == runs[None, :]).astype(float)])
@@ -182,6 +199,19 @@ class Problem:
         self._rcache[rkey] = X                  # most recently used last
         return X
 
+    def _masked(self, key, build):
+        """One effect's (or the sim's) columns on the masked training rows, kept for the
+        designs that share them (the state's effects recur in every candidate's design and
+        every continuous parameter a search tries); at most 64 blocks (30,000 rows: ~60 MB)."""
+        c = self._ccache.pop(key, None)
+        if c is None:
+            c = build()
+            c.flags.writeable = False
+            while len(self._ccache) >= 64:
+                self._ccache.pop(next(iter(self._ccache)))
+        self._ccache[key] = c
+        return c
+
     def prime(self, axis, blocks):
         """Filter the state's design once, so each candidate filters only its own columns."""
         self._train_design(axis, blocks, self.noise[axis])
@@ -189,7 +219,7 @@ class Problem:
     def _yw(self, axis, model, st):
         key = (axis, model.key(), "y")
         if key not in self._wcache:
-            self._wcache[key] = N.whiten(self.y_t[self.train.mask, axis], model, st)
+            self._wcache[key] = N.whiten(self._ymasked(axis), model, st)
         return self._wcache[key]
 
     def evaluate(self, axis, blocks, withheld=True, model=None):
@@ -201,9 +231,9 @@ class Problem:
         per_run = any(BY_NAME[n].per_run for n, _ in blocks)
         X, scale, Xs, nlev, st0 = self._train_design(axis, blocks, model)
         y = self._yw(axis, model, st0)
-        yr = self.y_t[self.train.mask, axis]
-        Gf = [Xs[i].T @ Xs[i] for i in self._idx]
-        bf = [Xs[i].T @ y[i] for i in self._idx]
+        yr = self._ymasked(axis)
+        Gf = [Xs[i].T @ Xs[i] for i in self._sl]
+        bf = [Xs[i].T @ y[i] for i in self._sl]
         G, b = sum(Gf), sum(bf)
         r_cv = np.empty_like(y)
         B = 0 if model.is_white else model.memory()
@@ -285,16 +315,62 @@ class Problem:
         under the noise model, the effects' coefficients (and a walking bias's levels) at
         their GLS estimates and the scale concentrated out: maximised over the noise model's
         parameters, this is the profile likelihood of the state-space model."""
-        X, scale, Xs, nlev, st = self._train_design(axis, blocks, model)
-        y = self._yw(axis, model, st)
-        if X.shape[1]:
-            beta = _solve(Xs.T @ Xs, Xs.T @ y, RCOND if model.is_white else RCOND_WALK)
-            u = y - Xs @ beta
-        else:
-            u = y
+        u = self._loglik_uncached(axis, blocks, model)
+        if u is None:
+            X, scale, Xs, nlev, st = self._train_design(axis, blocks, model)
+            y = self._yw(axis, model, st)
+            if X.shape[1]:
+                beta = _solve(Xs.T @ Xs, Xs.T @ y, RCOND if model.is_white else RCOND_WALK)
+                u = y - Xs @ beta
+            else:
+                u = y
         n = len(u)
         s2 = max(float(np.dot(u, u)) / n, 1e-300)
         return -0.5 * n * (np.log(2 * np.pi * s2) + 1), s2
+
+    def _loglik_uncached(self, axis, blocks, model):
+        """The GLS innovations of loglik() for a noise model met once (a noise search tries
+        about a hundred, each once), or None where the cached path applies (a white model, or
+        the design already filtered under this model). One filter pass over the design and
+        the target together, the column scaling and the normal equations from one Gram
+        matrix: the same solve as _train_design + loglik without keeping the filtered copy,
+        its scaled copy, or evicting the state's cached designs."""
+        if model.is_white:
+            return None
+        per_run = any(BY_NAME[n].per_run for n, _ in blocks)
+        bkey = tuple((n, _shape_key(s)) for n, s in blocks)
+        key = (axis, model.key(), bkey)
+        plain = not per_run
+        if key in self._wcache or (blocks and plain and (axis, model.key(), bkey[:-1], "prefix")
+                                   in self._wcache):
+            return None
+        st = self.starts(self.train, axis, model)
+        zkey = (axis, bkey, tuple(st) if model.walks else ())
+        if self._zraw[0] != zkey:      # a noise search: one design under ~100 noise models
+            X = self._raw_design(axis, blocks, bkey, per_run)
+            cols = [X]
+            if model.walks and len(st) > 1:
+                cols.append(N.level_columns(len(X), st, model)[:, 1:])
+            cols.append(self._ymasked(axis)[:, None])
+            self._zraw = (zkey, np.column_stack(cols))
+        Z = N.whiten(self._zraw[1], model, st)
+        k = Z.shape[1] - 1
+        y = Z[:, k]
+        if k == 0:
+            return y
+        Xw = Z[:, :k]
+        G = Z.T @ Z
+        n = len(y)
+        scale = np.sqrt(np.diag(G)[:k] / n)
+        scale[scale == 0] = 1.0
+        beta = _solve(G[:k, :k] / np.outer(scale, scale), G[:k, k] / scale, RCOND_WALK)
+        return y - Xw @ (beta / scale)
+
+    def _ymasked(self, axis):
+        key = ("ymasked", axis)
+        if key not in self._rcache_y:
+            self._rcache_y[key] = self.y_t[self.train.mask, axis]
+        return self._rcache_y[key]
 
     def _beta(self, axis, blocks, model=None):
         model = model or self.noise[axis]

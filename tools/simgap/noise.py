@@ -333,6 +333,8 @@ def whiten(x, model, starts):
     if len(b) == 1 and len(a) == 1:
         return x
     x = np.asarray(x, float)
+    if len(starts) == 1:
+        return lfilter(b, a, x, axis=0)
     out = np.empty_like(x)
     ends = list(starts[1:]) + [len(x)]
     for s, e in zip(starts, ends):
