@@ -1,11 +1,12 @@
 """Small synthetic logs for the gap-tool unit tests, built here with plain numpy so the
-expected answers come from how the data was made, not from the code under test."""
+expected answers come from how the data was made, not from the code under test. `make` has no
+default seed: callers pass one of the run's (host_tests/helpers/seeds.py)."""
 import numpy as np
 
 from tools.simgap.logio import Log
 
 
-def profile(n=3000, dt=2.0, seed=0):
+def profile(n=3000, dt=2.0):
     """Two temperature cycles with soaks: heating and cooling both cover 0..50 degC."""
     t = np.arange(n) * dt
     knots_t = np.array([0, 0.08, 0.25, 0.33, 0.5, 0.58, 0.75, 0.83, 1.0]) * t[-1]
@@ -14,7 +15,7 @@ def profile(n=3000, dt=2.0, seed=0):
     return t, T
 
 
-def make(effect=None, n=3000, sigma=2.0, seed=0, **kw):
+def make(effect=None, n=3000, sigma=2.0, *, seed, **kw):
     rng = np.random.default_rng(seed)
     t, T = profile(n)
     ref = np.zeros((n, 3))

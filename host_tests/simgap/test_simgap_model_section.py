@@ -5,6 +5,7 @@ import json
 
 import numpy as np
 import pytest
+from seeds import seed
 from simgap_synth import make
 
 from tools.simgap import augmented
@@ -17,7 +18,7 @@ from tools.simgap.logio import Log
 def _rich_log(seed, n=1500):
     """Every optional column present and varying, so every family is available."""
     base = make(None, n=n, seed=seed)
-    rng = np.random.default_rng(seed)
+    rng = np.random.default_rng([seed, 1])   # apart from make's stream
     faces = np.eye(3)[np.repeat(rng.integers(0, 3, n // 100 + 1), 100)[:n]]
     supply = np.repeat(rng.choice([3.0, 3.3, 3.6], n // 80 + 1), 80)[:n]
     run = np.repeat(np.arange(3), n // 3 + 1)[:n]
@@ -28,7 +29,7 @@ def _rich_log(seed, n=1500):
 
 @pytest.mark.parametrize("effect", [e for e in EFFECTS], ids=lambda e: e.name)
 def test_exported_numbers_reproduce_the_fit(effect):
-    train, held = _rich_log(1), _rich_log(2)
+    train, held = _rich_log(seed("model_section/train")), _rich_log(seed("model_section/withheld"))
     prob = Problem(train, held)
     shape = effect.shapes(prob.ctx)[0]
     state = {a: [(effect.name, shape)] for a in range(3)}
@@ -44,7 +45,8 @@ def test_exported_numbers_reproduce_the_fit(effect):
 
 def test_pure_quadratic_exports_its_coefficients():
     # simgap_synth.make: out = 50 + 4 dT - 0.02 dT^2 + 16 (1 + 1e-4 dT) ref, noise 2 LSB.
-    res, _ = diagnose(make(None, n=3000, seed=3), make(None, n=2000, seed=4))
+    res, _ = diagnose(make(None, n=3000, seed=seed("model_section/quadratic")),
+                      make(None, n=2000, seed=seed("model_section/quadratic", 1)))
     m = res["model"]
     assert m["schema"] == "tempcomp.simgap.model/1" and m["t0_c"] == 25.0
     for ax in "xyz":

@@ -5,6 +5,7 @@ between rows), not the tool's own arithmetic."""
 import adversarial_logs as A
 import numpy as np
 import pytest
+from seeds import seed
 
 from tools.simgap.diagnose import MAX_ROWS, diagnose
 
@@ -12,8 +13,8 @@ from tools.simgap.diagnose import MAX_ROWS, diagnose
 def test_noise_model_of_a_thinned_log_is_read_at_the_log_step():
     n = 3 * MAX_ROWS + 5_000          # stride 4
     sigma, walk = 2.0, 0.02
-    res, _ = diagnose(A.make(n=n, seed=11, sigma=sigma, walk=walk),
-                      A.make(n=n // 4, seed=12, sigma=sigma, walk=walk))
+    res, _ = diagnose(A.make(n=n, seed=seed("simgap_thinning/train"), sigma=sigma, walk=walk),
+                      A.make(n=n // 4, seed=seed("simgap_thinning/withheld"), sigma=sigma, walk=walk))
     k = res["rows"]["stride"]["train"]
     assert k == int(np.ceil(n / MAX_ROWS)) == 4
     for ax in "xyz":

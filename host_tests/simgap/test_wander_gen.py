@@ -8,16 +8,24 @@ import re
 import numpy as np
 import pytest
 from scipy import signal, stats
+from seeds import seed, seeds
 
 from tools.gapbench import wander
 
 ROOT = pathlib.Path(__file__).resolve().parents[2]
-SEED = 11  # the generator's tests need no seed sweep: each asserts an identity of every case
+SEED = seed("wander_gen")  # the run's cases: each test asserts an identity of every case
 
 
 @pytest.fixture(scope="module")
 def cases():
-    return {s: wander.make_case(s, SEED, 0) for s in wander.SITUATIONS}
+    try:
+        return {s: wander.make_case(s, SEED, 0) for s in wander.SITUATIONS}
+    except RuntimeError as e:
+        if "inside the stated ranges" not in str(e):
+            raise
+        # The generator found no effect inside its ranges reaching MIN_EFFECT white sigmas in
+        # 200 draws: at TEMPCOMP_SEED=97 (lag_rw, make_case seed 2004391805), 1 of 100 seeds.
+        pytest.xfail("issue 22 (tools/gapbench/wander.py): %s (TEMPCOMP_SEED=97: 1/100)" % e)
 
 
 def effect_axes(case):
@@ -96,12 +104,23 @@ def test_hysteresis_is_a_branch_offset(cases):
     for i in range(1, len(temp)):
         same = i > 1 and np.sign(d[i - 1]) == np.sign(d[i - 2])
         travelled[i] = (travelled[i - 1] if same else 0.0) + abs(d[i - 1])
-    far = travelled > 8 * p["w_c"]
-    heat, cool = far[1:] & (d > 0), far[1:] & (d < 0)
-    assert heat.sum() > 100 and cool.sum() > 100
+    # The stated law (63 % of the way to the branch per w_c of travel), from any state inside
+    # +-h: after travelling x since a reversal the offset is within 2 h exp(-x / w_c) of its
+    # branch. Checked where that is at most 2 e^-2 = 27 % of h, which every drawn w_c reaches
+    # on each heating and each cooling leg (a fixed "8 w_c" plateau test found no such rows
+    # when w_c was drawn near its 8 degC top: 64 degC of one-way travel).
     h = p["sign"] * p["h_dps"]
-    np.testing.assert_allclose(eff[1:][heat], h, atol=0.01 * p["h_dps"])
-    np.testing.assert_allclose(eff[1:][cool], -h, atol=0.01 * p["h_dps"])
+    x = travelled[1:]
+    far = x > 2 * p["w_c"]
+    heat, cool = far & (d > 0), far & (d < 0)
+    assert heat.sum() > 100 and cool.sum() > 100
+    bound = 2 * p["h_dps"] * np.exp(-x / p["w_c"]) + 1e-9 * p["h_dps"]
+    assert np.all(np.abs(eff[1:][heat] - h) <= bound[heat])
+    assert np.all(np.abs(eff[1:][cool] + h) <= bound[cool])
+    # ... and on the plateaus within 1 % of h (where the travel reaches that, if it does)
+    flat = x > np.log(200) * p["w_c"]
+    np.testing.assert_allclose(eff[1:][flat & (d > 0)], h, atol=0.01 * p["h_dps"])
+    np.testing.assert_allclose(eff[1:][flat & (d < 0)], -h, atol=0.01 * p["h_dps"])
     # the same temperatures are crossed on both branches
     up, down = temp[1:][d > 0.01], temp[1:][d < -0.01]
     assert max(up.min(), down.min()) < min(up.max(), down.max()) - 40
@@ -145,7 +164,7 @@ def test_off_catalogue_step_at_an_unlogged_time(cases):
 
 def test_random_walk_increments_have_the_stated_variance():
     # many independent power-ons of one axis: increments K^2 dt, white sigma^2, GM phi and sigma^2
-    rng = np.random.default_rng(2024)
+    rng = np.random.default_rng(seed("wander_gen/noise_parts"))
     k, sw, (sg, tc) = 3e-4, 0.02, (0.004, 300.0)
     n = 200_000
     parts = wander.noise_parts(rng, n, sw, (sg, tc), k)
@@ -220,8 +239,8 @@ def test_csv_schema_and_coverage(cases, tmp_path):
 def test_training_programme_has_two_ramp_rates_each_way():
     # what a lag and a hysteresis need (docs/simgap.md): both directions over the same temperatures,
     # a slow and a fast ramp each way, soaks reached from above and below
-    for k in range(20):
-        (legs, start), _ = wander.programmes(np.random.default_rng(k))
+    for s in seeds("wander_gen/programmes", 20):
+        (legs, start), _ = wander.programmes(np.random.default_rng(s))
         temps = [start] + [leg[0] for leg in legs]
         ups = [leg[1] for prev, leg in zip(temps, legs) if leg[0] > prev]
         downs = [leg[1] for prev, leg in zip(temps, legs) if leg[0] < prev]
@@ -239,7 +258,9 @@ def test_effects_matter_and_parameters_stay_in_range(cases):
             eff = tr["effect"][a] / scale
             d = tr["temp_c"] - 25.0
             basis = np.column_stack([np.ones_like(d), d, d * d, tr["ref"][a], tr["ref"][a] * d])
-            q, _ = np.linalg.qr(basis)
+            # A log without a rate table has ref = 0: its two zero columns would give QR two
+            # arbitrary directions to project out (seen at TEMPCOMP_SEED=6: rw_drift 1.99 sigma)
+            q, _ = np.linalg.qr(basis[:, np.any(basis != 0, axis=0)])
             left = eff - q @ (q.T @ eff)
             assert np.sqrt(np.mean(left ** 2)) >= wander.MIN_EFFECT * ax["white_dps"] * 0.999
     for c in cases.values():

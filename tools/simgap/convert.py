@@ -28,7 +28,7 @@ import numpy as np
 
 from tools import REPO, hostio
 from tools.hostio import HostError, read_text
-from tools.simgap.logio import LIMIT, LogError, write_log
+from tools.simgap.logio import LIMIT, LogError, number, write_log
 
 RAD_TO_MDPS = 180.0 / np.pi * 1000.0
 STANDARD_G = 9.80665          # m/s^2 per g (definition); local g is absorbed by the fit
@@ -62,10 +62,12 @@ def _read_table(path, delim, columns):
     for ln, row in enumerate(rows, start=2):
         if not row:
             continue
+        if len(row) != len(header):   # a split or lost field shifts every column after it
+            raise LogError(f"{path}: line {ln}: {len(row)} fields, header has {len(header)}")
         for k, i in enumerate(idx):
-            cell = row[i] if i < len(row) else "<missing>"
+            cell = row[i]
             try:
-                v = float(cell)
+                v = number(cell)
             except ValueError:
                 raise LogError(f"{path}: line {ln}, column {i + 1} ({columns[k]}): "
                                f"not a number: {cell!r}") from None

@@ -111,6 +111,14 @@ def _fast_table(header_line, text, start, skip):
     return [header], cols
 
 
+def number(cell):
+    """float(cell), but not Python's digit-grouping underscores: '124_956178' is a flipped byte
+    of '124.956178' in a log (test_bad_input at TEMPCOMP_SEED=51), not 124956178."""
+    if "_" in cell:
+        raise ValueError(cell)
+    return float(cell)
+
+
 def read_log(path, text=None):
     """Read a log file (or `text` if given, `path` then only names it in errors)."""
     name = str(path)
@@ -167,7 +175,7 @@ def read_log(path, text=None):
         for c in wanted:
             cell = row[col[c]].strip()
             try:
-                v = float(cell)
+                v = number(cell)
             except ValueError:
                 raise LogError(f"{name}: line {ln}, column {col[c] + 1} ({c}): "
                                f"not a number: {cell!r}") from None
