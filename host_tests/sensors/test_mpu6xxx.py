@@ -149,9 +149,13 @@ def test_datasheet_noise(family):
             v = buf[j] << 8 | buf[j + 1]
             acc[k] += v - 65536 if v & 0x8000 else v
     mean = sim.mean_output()
+    # 5 sigma, not 4: six channels checked at a random seed per run, so a 4-sigma bound fails by
+    # chance about 6 x 6.3e-5 = 4e-4 of runs (seen: TEMPCOMP_SEED=115, 4.04 sigma on one accel
+    # channel; the sim's 3000-sample means have a z deviation of 1.00 over 3000 seeds, and 1 in
+    # 18,000 beyond 4); at 5 sigma, 3e-6. Rounding to the output code adds +-0.5 dithered: 0.01.
     for k in range(6):
         sig = (sim.accel_noise * 16384.0 if k < 3 else sim.gyro_noise * 131.0) / math.sqrt(m)
-        assert abs(acc[k] / m - mean[k]) <= 4 * sig + 0.01
+        assert abs(acc[k] / m - mean[k]) <= 5 * sig + 0.01, (k, acc[k] / m - mean[k], sig)
 
 
 def test_icm20602_fourteen_byte_packets():
