@@ -748,3 +748,25 @@ def test_store_put_refuses_a_bad_model(model, says, tmp_path, capsys):
     rc, out, err = run_front_door(["store", "put", p, str(m), "--name", "aug"], capsys)
     assert rc == 2 and err.count("\n") == 1 and says in err and str(m) in err, err
     assert open(p, "rb").read() == before  # the store is unchanged
+
+
+@pytest.mark.parametrize("tool", ["fit", "gap"])
+def test_a_digit_grouping_underscore_is_not_a_number(tool, tmp_path, capsys):
+    # float('124_956') is 124956 in Python: in a log it is a damaged '124.956' (a flipped byte,
+    # found by test_damaged_input at TEMPCOMP_SEED=51), so every reader refuses it by line
+    if tool == "fit":
+        text = _an12760_csv()
+        argv = ["fit", "an12760", "{f}", "--json", "{o}"]
+    else:
+        _gap_log(tmp_path / "src.csv")
+        text = (tmp_path / "src.csv").read_text()
+        argv = ["gap", "{f}", "--json", "{o}"]
+    lines = text.splitlines(True)
+    k = next(i for i in range(1, len(lines)) if "." in lines[i])
+    lines[k] = lines[k].replace(".", "_", 1)
+    (tmp_path / "d.csv").write_text("".join(lines))
+    argv = [a.format(f=tmp_path / "d.csv", o=tmp_path / "o.json") for a in argv]
+    rc, out, err = run_front_door(argv, capsys)
+    assert rc == 2 and "Traceback" not in err, err
+    assert err.count("\n") == 1 and "line %d" % (k + 1) in err and "not a number" in err, err
+    assert not (tmp_path / "o.json").exists()

@@ -73,6 +73,9 @@ def read_table(path, required, optional=(), text_cols=(), text=None):
         raise FitError("%s line %d: %d cells, the header has %d (a truncated line or a deleted cell?)"
                        % (path, lines_arr[k], len(body[k]), width))
     wanted = list(required) + [c for c in optional if c in header and c not in required]
+    # float() reads '124_956' as 124956 (Python's digit grouping): in a log that is a damaged
+    # '124.956'; one search of the body decides whether the cells need the per-cell check
+    grouped = "_" in text[len(lines[0]):]
     out = {"_line": lines_arr}
     for name in wanted:
         j = header.index(name)
@@ -80,15 +83,18 @@ def read_table(path, required, optional=(), text_cols=(), text=None):
         if name in text_cols:
             out[name] = [c.strip() for c in cells]
         else:
-            out[name] = to_numbers(cells, name, lines_arr, path)
+            out[name] = to_numbers(cells, name, lines_arr, path, grouped)
     return out
 
 
-def to_numbers(cells, name, lines, path):
-    """float64 array of cells; FitError naming the first cell that is not a finite, sane number."""
+def to_numbers(cells, name, lines, path, grouped=True):
+    """float64 array of cells; FitError naming the first cell that is not a finite, sane number
+    (a cell with an underscore is not one; ``grouped=False``: the caller knows none has one)."""
     try:
         arr = np.array(cells, dtype=np.float64)
     except (ValueError, OverflowError):
+        arr = None
+    if arr is not None and grouped and any("_" in c for c in cells):
         arr = None
     if arr is not None:
         bad = ~(np.abs(arr) < LIMIT)  # NaN, inf and absurd magnitudes
@@ -99,6 +105,8 @@ def to_numbers(cells, name, lines, path):
         k = next(i for i, s in enumerate(cells) if not _number(s))
     s = cells[k].strip()
     try:
+        if "_" in s:
+            raise ValueError(s)
         v = float(s)
     except ValueError:
         raise FitError("%s line %d: column %s is %r, not a number" % (path, lines[k], name, s)) from None
@@ -109,6 +117,8 @@ def to_numbers(cells, name, lines, path):
 
 
 def _number(s):
+    if "_" in s:
+        return False
     try:
         v = float(s)
     except ValueError:
