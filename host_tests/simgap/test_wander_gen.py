@@ -176,8 +176,11 @@ def test_random_walk_increments_have_the_stated_variance():
     g = parts["gm"]
     phi = np.exp(-wander.ROW_S / tc)
     assert np.corrcoef(g[:-1], g[1:])[0, 1] == pytest.approx(phi, abs=0.002)
-    # a GM's variance converges slowly (about n dt / 2 tc independent values)
-    assert g.var() == pytest.approx(sg ** 2, rel=0.1)
+    # a GM's variance converges slowly: the sample variance of an AR(1) has a relative standard
+    # deviation sqrt(2 (1 + phi^2) / (n (1 - phi^2))), 0.032 here (0.1 was 3.2 of them: it failed at
+    # TEMPCOMP_SEED=249252, -12 %); 5 of them
+    rel = 5 * np.sqrt(2 * (1 + phi * phi) / (n * (1 - phi * phi)))
+    assert g.var() == pytest.approx(sg ** 2, rel=rel)
 
 
 def test_noise_in_the_cases_matches_the_truth(cases):
