@@ -105,9 +105,7 @@ def to_numbers(cells, name, lines, path, grouped=True):
         k = next(i for i, s in enumerate(cells) if not _number(s))
     s = cells[k].strip()
     try:
-        if "_" in s:
-            raise ValueError(s)
-        v = float(s)
+        v = _float(s)
     except ValueError:
         raise FitError("%s line %d: column %s is %r, not a number" % (path, lines[k], name, s)) from None
     if not math.isfinite(v):
@@ -116,11 +114,16 @@ def to_numbers(cells, name, lines, path, grouped=True):
                    % (path, lines[k], name, s, LIMIT))
 
 
-def _number(s):
+def _float(s):
+    # float() without Python's digit-grouping underscores (see read_table)
     if "_" in s:
-        return False
+        raise ValueError(s)
+    return float(s)
+
+
+def _number(s):
     try:
-        v = float(s)
+        v = _float(s)
     except ValueError:
         return False
     return abs(v) < LIMIT
