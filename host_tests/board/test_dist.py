@@ -3,6 +3,7 @@ installs it by default with real `mpremote mip install` (here onto the virtual b
 request; the board then imports tempcomp from the .mpy files and restores nothing it was not given."""
 import json
 import os
+import socket
 import subprocess
 import sys
 
@@ -72,8 +73,6 @@ def test_mip_install_of_the_mpy_package_on_the_virtual_board(tmp_path, package):
 def test_deploy_to_a_board_another_client_holds_is_one_line(tmp_path):
     # the virtual board serves one client at a time (README, Security): a deploy while a terminal is
     # attached must say so in one line, not end in mpremote's or subprocess's traceback
-    import socket
-
     vb = VirtualBoard(str(tmp_path / "vb"))
     try:
         vb.start()
@@ -94,8 +93,6 @@ def test_deploy_to_a_board_another_client_holds_is_one_line(tmp_path):
 def test_deploy_without_a_board_says_how_to_start_one(tmp_path):
     # through the front door (python -m tools / make deploy), a command's own SystemExit message
     # reaches the user with exit status 1, as the interpreter itself would print it
-    import socket
-
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
         free = s.getsockname()[1]  # nothing listens there once closed
