@@ -14,7 +14,7 @@ import math
 import numpy as np
 
 from tools.fit.common import FitError
-from tools.hostio import HostError, read_text
+from tools.hostio import HostError, number, read_text
 
 # no chamber reading comes near this: a cell beyond it is a typo or garbage, and squaring it
 # in a least-squares fit would overflow to inf
@@ -105,7 +105,7 @@ def to_numbers(cells, name, lines, path, grouped=True):
         k = next(i for i, s in enumerate(cells) if not _number(s))
     s = cells[k].strip()
     try:
-        v = _float(s)
+        v = number(s)
     except ValueError:
         raise FitError("%s line %d: column %s is %r, not a number" % (path, lines[k], name, s)) from None
     if not math.isfinite(v):
@@ -114,16 +114,9 @@ def to_numbers(cells, name, lines, path, grouped=True):
                    % (path, lines[k], name, s, LIMIT))
 
 
-def _float(s):
-    # float() without Python's digit-grouping underscores (see read_table)
-    if "_" in s:
-        raise ValueError(s)
-    return float(s)
-
-
 def _number(s):
     try:
-        v = _float(s)
+        v = number(s)
     except ValueError:
         return False
     return abs(v) < LIMIT

@@ -27,8 +27,8 @@ import sys
 import numpy as np
 
 from tools import REPO, hostio
-from tools.hostio import HostError, read_text
-from tools.simgap.logio import LIMIT, LogError, number, write_log
+from tools.hostio import HostError, number, read_text
+from tools.simgap.logio import LIMIT, LogError, write_log
 
 RAD_TO_MDPS = 180.0 / np.pi * 1000.0
 STANDARD_G = 9.80665          # m/s^2 per g (definition); local g is absorbed by the fit

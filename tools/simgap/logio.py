@@ -9,7 +9,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from tools.hostio import HostError, read_text
+from tools.hostio import HostError, number, read_text
 
 REQUIRED = ("time_s", "temp_c", "out_x", "out_y", "out_z", "ref_x", "ref_y", "ref_z")
 OPTIONAL = ("supply_v", "acc_x", "acc_y", "acc_z", "chamber_c", "run")
@@ -109,14 +109,6 @@ def _fast_table(header_line, text, start, skip):
     if not all(np.all(np.isfinite(c)) and not np.any(np.abs(c) >= LIMIT) for c in cols):
         return None
     return [header], cols
-
-
-def number(cell):
-    """float(cell), but not Python's digit-grouping underscores: '124_956178' is a flipped byte
-    of '124.956178' in a log (test_bad_input at TEMPCOMP_SEED=51), not 124956178."""
-    if "_" in cell:
-        raise ValueError(cell)
-    return float(cell)
 
 
 def read_log(path, text=None):
