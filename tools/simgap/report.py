@@ -88,10 +88,11 @@ def text(res):
     for c in res["untried"]:
         L.append(f"not tried: {c['name']} ({c['reason']})")
     if res["where"]:
-        L.append("where (share of the training residual energy above the noise floor, all axes):")
+        L.append("where (cells ranked by z, their mean residual over its standard error; share of the "
+                 "training residual energy above the noise floor, all axes):")
         for c in res["where"][:6]:
             L.append(f"   {c['axis']} {c['dimension']:<11} {str(c['from']):>8} .. {str(c['to']):<8}"
-                     f" share {100 * c['share']:5.1f}%  mean {c['mean']:+.4g} {u}")
+                     f" z {c['z_eff']:+6.1f}  share {100 * c['share']:5.1f}%  mean {c['mean']:+.4g} {u}")
     return "\n".join(L)
 
 
@@ -196,7 +197,7 @@ def plot(res, extras, path):
         ax.text(0.5, 0.5, "no cell above the noise floor", ha="center", va="center",
                 transform=ax.transAxes)
         ax.set_yticks([])
-    t = "where: cells by excess over the floor"
+    t = "where: cells above the floor, ranked by their mean's z"
     ax.set_title(t)
     drawn["titles"].append(t)
     drawn["where_labels"] = [_cell_label(c) for c in cells]

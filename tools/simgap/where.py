@@ -1,5 +1,6 @@
 """Where the sim departs from the log: the training residual split into cells along one
-dimension at a time, each cell's share of the excess energy over the noise floor."""
+dimension at a time; the cells whose excess energy over the noise floor is beyond noise, each
+with its share of that excess, ranked by how surely the cell's mean departs from zero."""
 import numpy as np
 
 from . import prep
@@ -39,11 +40,26 @@ def _cells(p, axis, ctx):
             yield "run", int(r), int(r), log.run == r
 
 
+def _z_eff(r, sigma, keep):
+    """The mean of r over its standard error were the cell at the noise floor: sigma over
+    sqrt(n keep), keep = n_eff / n under the noise's autocorrelation."""
+    return float(np.mean(r) / (max(sigma, 1e-300) / np.sqrt(len(r) * keep)))
+
+
 def localise(p, resid, sigma, ctx, top=40):
     """resid: (N, 3) sim residual on prepared log p; sigma: noise floor per axis. A cell's
     share is its residual energy above the noise floor (sum r^2 - n sigma^2) over the excess
-    of all three axes together, so an axis the sim fits to the floor contributes nothing and
-    the top cell lies where the sim misfits most, whatever the data mass elsewhere."""
+    of all three axes together, so an axis the sim fits to the floor contributes nothing.
+
+    Cells are ranked by |z_eff|, the cell's mean residual over its standard error under the
+    noise alone (the floor sigma over sqrt(n_eff), n_eff = n (1 - rho) / (1 + rho), rho the
+    noise's lag-1 autocorrelation on that axis). Ranking by share favoured big cells: an input
+    cell holding half the rows carries half of any misfit's energy though its mean is near zero,
+    and outranked the heating/cooling branch or temperature band the misfit lives in. A cell
+    mixing two opposite offsets (one straddling both branches) has a mean near zero and ranks
+    below a cell holding one of them. (The cell's own spread in the error instead of the floor
+    was tried: it let a neighbouring band with a small, even offset outrank a band only partly
+    covered by the misfit, 4/46 seeds against main's 2/46.)"""
     clipped, totals = {}, {}
     m0 = p.mask
     for a in range(3):
@@ -62,6 +78,15 @@ def localise(p, resid, sigma, ctx, top=40):
         return out
     for a in range(3):
         rc = clipped[a]
+        # The noise's lag-1 autocorrelation rho, from the first differences so that the slow
+        # misfit being located does not count as noise: for AR(1) noise the differences' lag-1
+        # autocorrelation is -(1 - rho) / 2. The AR(1) effective sample size of a cell's mean is
+        # exact for a contiguous stretch and on the safe side for scattered stretches.
+        d = np.diff(rc[m0])
+        d = d - np.mean(d)
+        a1 = float(np.dot(d[1:], d[:-1]) / max(float(np.dot(d, d)), 1e-300))
+        rho = min(max(1 + 2 * a1, 0.0), 0.99)
+        keep = (1 - rho) / (1 + rho)
         if totals[a] <= 9 * sigma[a] ** 2 * np.sqrt(2 * n0):
             continue
         found = False
@@ -82,7 +107,8 @@ def localise(p, resid, sigma, ctx, top=40):
                         "share": round(share, 4), "n": n, "mean": mean,
                         "rms": float(np.sqrt(np.mean(rc[m] ** 2))),
                         "excess": e,
-                        "z": float(mean / (sigma[a] / np.sqrt(n))) if sigma[a] > 0 else 0.0})
+                        "z": float(mean / (sigma[a] / np.sqrt(n))) if sigma[a] > 0 else 0.0,
+                        "z_eff": _z_eff(rc[m], sigma[a], keep)})
             found = True
         if not found:
             # The axis's excess is beyond noise but spread so evenly (a coarse temperature
@@ -97,6 +123,7 @@ def localise(p, resid, sigma, ctx, top=40):
                         "from": round(float(ctx.tmin), 4), "to": round(float(ctx.tmax), 4),
                         "share": round(min(1.0, totals[a] / overall), 4), "n": n, "mean": mean,
                         "rms": float(np.sqrt(np.mean(rc[m] ** 2))), "excess": totals[a],
-                        "z": float(mean / (sigma[a] / np.sqrt(n))) if sigma[a] > 0 else 0.0})
-    out.sort(key=lambda c: -c["share"])
+                        "z": float(mean / (sigma[a] / np.sqrt(n))) if sigma[a] > 0 else 0.0,
+                        "z_eff": _z_eff(rc[m], sigma[a], keep)})
+    out.sort(key=lambda c: -abs(c["z_eff"]))
     return out[:top]
