@@ -320,7 +320,7 @@ def make_case(situation, seed, index=0):
                     "aging": "drift_linear", "rw_drift": "drift_warmup"}[situation]
         elif a in humid_axes:
             kind = "humidity"
-        _plant(rng, a, ax, kind, logs, scale)
+        _plant(rng, a, ax, kind, logs, scale, slope_range)
         truth["axes"][a] = ax
     truth["oracle_floor_lsb"] = {a: truth["axes"][a]["oracle_floor_lsb"]["withheld"] for a in AXES}
     return {"train": logs["train"], "withheld": logs["withheld"], "truth": truth}
@@ -332,9 +332,12 @@ def _offset(ax, temp):
     return o0 + o1 * d + o2 * d * d
 
 
-def _plant(rng, a, ax, kind, logs, scale):
+def _plant(rng, a, ax, kind, logs, scale, slope_range):
     """Draw this axis' effect (redrawn until it is one a calibration must care about) and noise;
-    write out_<a> (LSB) with its clean signal, effect and noise parts into each log."""
+    write out_<a> (LSB) with its clean signal, effect and noise parts into each log. A lag's size
+    is the static slope it delays times the temperature's lag: when no time constant reaches
+    MIN_EFFECT with the slope drawn (a slow programme, a noisy part), the slope is redrawn with it
+    (only then, so every case that drew one in the first 200 tries stays the same)."""
     def offset(temp):
         return _offset(ax, temp)
 
@@ -342,7 +345,9 @@ def _plant(rng, a, ax, kind, logs, scale):
     p = None
     if kind is not None:
         tr = logs["train"]
-        for _ in range(200):
+        for i in range(400):
+            if i >= 200 and kind in ("temp_rate_lag", "temp_rate_heavy"):
+                ax["offset_dps"][1] = _sign(rng) * _u(rng, slope_range)
             p = draw_effect(kind, rng)
             if kind == "temp_rate_heavy":
                 p["weight_dps_per_c"] = p["sign"] * p["ratio"] * abs(ax["offset_dps"][1])
