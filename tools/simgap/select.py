@@ -339,20 +339,46 @@ class Greedy:
         random through the noise in r1: its variance is 4 sd^2 tau sum(delta^2), with sd and
         tau (integrated autocorrelation time) of the saturated model's innovations - about 1
         when the noise model is right, longer when something slow is left that no candidate
-        and no noise term predicts."""
+        and no noise term predicts.
+
+        That variance is too small where r1 holds more than the noise model's innovations:
+        a held-out segment is predicted from coefficients the other segments fitted, so its
+        r1 carries their estimation error, smooth along the segment, and 2 delta r1 then
+        keeps its sign for tens to hundreds of rows (measured on wander logs whose guard
+        refused a planted lag or loop: autocorrelation times of 20-250 rows where the
+        innovations' is 1; the loss was spread over the segment, not in its first rows,
+        where the filter has no state). The guard of the in-sample path (z_other below)
+        therefore takes each segment's variance as the larger of that and the HAC
+        estimate from the held-out products themselves, sum(p^2) x their own
+        autocorrelation time (p = 2 delta r1 less its segment mean; segments independent).
+        Only the guard: the held-out path's z and z_rest keep the in-sample variance, which
+        (measured) would otherwise lose the loop at wander seed 24."""
         r0, r1 = self.cur[axis]["cv"], v["res"]["cv"]
         ss0, ss1 = float(np.sum(r0 ** 2)), float(np.sum(r1 ** 2))
         gain = r0 ** 2 - r1 ** 2
         delta = r0 - r1
+        folds = self.prob.cv_fold
 
         def z_of(sel):
             den = 2 * sd * np.sqrt(tau * float(np.sum(delta[sel] ** 2)))
             return float(np.sum(gain[sel]) / den) if den > 0 else 0.0
 
+        def z_segments(segs):
+            g = var = 0.0
+            for f in segs:
+                s = folds == f
+                p = 2 * delta[s] * r1[s]
+                if not p.size:
+                    continue
+                p = p - p.mean()
+                g += float(np.sum(gain[s]))
+                var += max(4 * sd ** 2 * tau * float(np.sum(delta[s] ** 2)),
+                           float(np.dot(p, p)) * N.autocorr_time(p))
+            return g / np.sqrt(var) if var > 0 else 0.0
+
         z = z_of(slice(None))
         # No single segment may carry the finding: with the segment that gains most left
         # out, the rest must still point the same way.
-        folds = self.prob.cv_fold
         fg = np.array([gain[folds == f].sum() for f in range(self.prob.nfold)])
         rest = folds != int(np.argmax(fg))
         z_rest = z_of(rest) if rest.any() else 0.0
@@ -369,7 +395,8 @@ class Greedy:
                                     max(float(np.sum(i1 ** 2)), 1e-300))
         p_lr = float(stats.chi2.sf(2 * max(lr, 0.0), v["df"])) * v["grid"] * self._ncand
         # ... unless the other held-out segments contradict it (their gain significantly
-        # negative, one-sided 2.5 %): a shape that fits one stretch and predicts the others
+        # negative, one-sided 2.5 %, its variance from the held-out products as the
+        # docstring says): a shape that fits one stretch and predicts the others
         # worse is a fit to something else (an unlogged cause), not that effect. The segment
         # that holds the evidence is left out of this check: predicted from the others, a
         # warm-up's columns extrapolate wildly there, which says nothing against it.
@@ -377,8 +404,7 @@ class Greedy:
         local = lf is not None
         z_other = 0.0
         if local:
-            other = folds != lf
-            z_other = z_of(other) if other.any() else 0.0
+            z_other = z_segments([f for f in range(self.prob.nfold) if f != lf])
         significant = (p_lr < ALPHA_INSAMPLE and z_other > -Z_REST) if local else heldout
         score = 2 * lr if local else (ss0 - ss1) / max(s2, 1e-300)
         v.update(cv_before=r0, rms_before=float(np.sqrt(ss0 / len(r0))), rms_after=float(np.sqrt(ss1 / len(r1))),
