@@ -538,18 +538,17 @@ class Greedy:
                 self.cur[a] = self.prob.evaluate(a, self.state[a], withheld=False)
 
     def _nested_claim(self, a, others, name, best, ranked, grid):
-        """A family with more columns than another (exponential + trend against the
-        exponential, the line or the hyperbola) claims more than it: a lasting trend beside
-        the warm-up. With
-        one power-on a trend is also what a bias random walk looks like, and a walk that a
-        trend has taken leaves a residual a stationary Gauss-Markov term fits, so the profile
-        BIC (0.5 ln n for the column) lets the walk's own trend in. The extra columns face the
-        test any effect faces against a wandering bias (stage B, _lr_z): profile likelihoods,
-        each over its own noise model, the larger family's grid Bonferroni-corrected, z >=
-        Z_WANDER, df the extra columns; else the best smaller family (by profile BIC) stays.
-        Returns ((profile BIC, shape), whether the larger family was turned down). Measured on
-        the wander set's rw_drift seeds 41 and 47: exponential + trend under a Gauss-Markov
-        term beat the true exponential under a walk by 7-8 nats, z 3.45 and 3.05 here."""
+        """A family with more columns than another (exponential + trend against the exponential,
+        the line or the hyperbola) claims more than it: a lasting trend beside the warm-up. With
+        one power-on a trend is also what a bias random walk looks like, and a walk that a trend
+        has taken leaves a residual a stationary Gauss-Markov term fits, so the profile BIC (0.5
+        ln n for the column) lets the walk's own trend in. The extra columns face the test any
+        effect faces against a wandering bias (stage B, _lr_z): profile likelihoods, each over
+        its own noise model, the larger family's grid Bonferroni-corrected, z >= Z_WANDER, df
+        the extra columns; else the best smaller family (by profile BIC) stays. Returns
+        ((profile BIC, shape), whether the larger family was turned down). Measured on the
+        wander set's rw_drift seeds 41 and 47: exponential + trend under a Gauss-Markov term
+        beat the true exponential under a walk by 7-8 nats, z 3.45 and 3.05 here."""
         e = BY_NAME[name]
         df_best = self._effect_df(a, name, best[1])
         smaller = [r for r in ranked if self._effect_df(a, name, r[1]) < df_best]
