@@ -90,20 +90,21 @@ def base_identified(train):
     for a in range(3):
         keep = [True] * 5
         why = []
+        levels = _levels(train.ref[:, a])
         if span < SPAN_SLOPE:
             keep[1] = keep[2] = keep[4] = False
-            why.append(f"temperature spans {span:.2g} degC (< {SPAN_SLOPE:g}): no temperature law")
-            if _levels(train.ref[:, a]) >= 2:
+            law = "no temperature law"
+            if levels >= 2:
                 z = sensitivity_slope_z(train, a)
                 if z > Z_LAW:
                     keep[4] = True
-                    why[-1] = (f"temperature spans {span:.2g} degC (< {SPAN_SLOPE:g}): no offset "
-                              f"temperature law (the sensitivity's slope is fitted: the input "
-                              f"steps show it at z = {z:.3g})")
+                    law = (f"no offset temperature law (the sensitivity's slope is fitted: the "
+                           f"input steps show it at z = {z:.3g})")
+            why.append(f"temperature spans {span:.2g} degC (< {SPAN_SLOPE:g}): {law}")
         elif span < SPAN_CURVE:
             keep[2] = False
             why.append(f"temperature spans {span:.2g} degC (< {SPAN_CURVE:g}): curvature fixed at 0")
-        if _levels(train.ref[:, a]) < 2:
+        if levels < 2:
             # One input level: the sensitivity cannot be told from the offset; the offset
             # absorbs s0 * ref (exact for withheld rows at the same input, which coverage
             # requires).
