@@ -40,10 +40,11 @@ def _cells(p, axis, ctx):
             yield "run", int(r), int(r), log.run == r
 
 
-def _z_eff(r, sigma, keep):
-    """The mean of r over its standard error were the cell at the noise floor: sigma over
-    sqrt(n keep), keep = n_eff / n under the noise's autocorrelation."""
-    return float(np.mean(r) / (max(sigma, 1e-300) / np.sqrt(len(r) * keep)))
+def _z_eff(mean, n, sigma, keep):
+    """A cell's mean over its standard error were the cell at the noise floor: sigma over
+    sqrt(n keep), keep = n_eff / n under the noise's autocorrelation. A zero floor (a noiseless
+    log) still ranks cells by mean x sqrt(n_eff) through the tiny stand-in for sigma."""
+    return float(mean / (max(sigma, 1e-300) / np.sqrt(n * keep)))
 
 
 def localise(p, resid, sigma, ctx, top=40):
@@ -77,6 +78,8 @@ def localise(p, resid, sigma, ctx, top=40):
     if overall <= 0:
         return out
     for a in range(3):
+        if totals[a] <= 9 * sigma[a] ** 2 * np.sqrt(2 * n0):
+            continue
         rc = clipped[a]
         # The noise's lag-1 autocorrelation rho, from the first differences so that the slow
         # misfit being located does not count as noise: for AR(1) noise the differences' lag-1
@@ -87,8 +90,6 @@ def localise(p, resid, sigma, ctx, top=40):
         a1 = float(np.dot(d[1:], d[:-1]) / max(float(np.dot(d, d)), 1e-300))
         rho = min(max(1 + 2 * a1, 0.0), 0.99)
         keep = (1 - rho) / (1 + rho)
-        if totals[a] <= 9 * sigma[a] ** 2 * np.sqrt(2 * n0):
-            continue
         found = False
         for dim, lo, hi, m in _cells(p, a, ctx):
             m = m & m0
@@ -108,7 +109,7 @@ def localise(p, resid, sigma, ctx, top=40):
                         "rms": float(np.sqrt(np.mean(rc[m] ** 2))),
                         "excess": e,
                         "z": float(mean / (sigma[a] / np.sqrt(n))) if sigma[a] > 0 else 0.0,
-                        "z_eff": _z_eff(rc[m], sigma[a], keep)})
+                        "z_eff": _z_eff(mean, n, sigma[a], keep)})
             found = True
         if not found:
             # The axis's excess is beyond noise but spread so evenly (a coarse temperature
@@ -124,6 +125,6 @@ def localise(p, resid, sigma, ctx, top=40):
                         "share": round(min(1.0, totals[a] / overall), 4), "n": n, "mean": mean,
                         "rms": float(np.sqrt(np.mean(rc[m] ** 2))), "excess": totals[a],
                         "z": float(mean / (sigma[a] / np.sqrt(n))) if sigma[a] > 0 else 0.0,
-                        "z_eff": _z_eff(rc[m], sigma[a], keep)})
+                        "z_eff": _z_eff(mean, n, sigma[a], keep)})
     out.sort(key=lambda c: -abs(c["z_eff"]))
     return out[:top]
