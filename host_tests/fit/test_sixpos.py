@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 import seeds
 from paths import REPO
+from scipy import stats
 
 from tempcomp import record
 from tempcomp.an12760 import AN12760
@@ -46,11 +47,16 @@ def test_sixpos_recovers_truth_within_statistical_error():
     ]:
         m, s = _z(est, true, se_)
         assert abs(m) < 0.12 and 0.85 < s < 1.15, (m, s)
-    # cross-axis terms (symmetric + rotation) at every temperature, within 5 sigma
+    # cross-axis terms (symmetric + rotation) at every temperature, each within the normal
+    # deviate that all 4 x 1200 of them stay under with probability 1 - 1e-6 (Bonferroni): a flat
+    # 5 sigma over 4,800 estimates fails a correct fit in about 0.3 % of runs (max |z| 5.02 at
+    # TEMPCOMP_SEED=915289, a CI run; median max 3.86 over seeds 1-200)
     se_N = out["se_cross"]
-    for i, j in [(0, 1), (0, 2), (1, 2), (2, 0)]:
+    pairs = [(0, 1), (0, 2), (1, 2), (2, 0)]
+    z_all = stats.norm.isf(1e-6 / (2 * len(pairs) * se_N[:, :, 0, 1].size))
+    for i, j in pairs:
         d = out["cross"][:, :, i, j] - tr["N"][:, None, i, j]
-        assert np.all(np.abs(d) < 5 * se_N[:, :, i, j])
+        assert np.all(np.abs(d) < z_all * se_N[:, :, i, j])
         m, s = _z(out["cross"][:, :, i, j], tr["N"][:, None, i, j], se_N[:, :, i, j])
         assert abs(m) < 0.12 and 0.8 < s < 1.2
     # misalignment: the antisymmetric part is the simulated rotation

@@ -40,11 +40,18 @@ def _cells(p, axis, ctx):
             yield "run", int(r), int(r), log.run == r
 
 
-def _z_eff(mean, n, sigma, keep):
-    """A cell's mean over its standard error were the cell at the noise floor: sigma over
-    sqrt(n keep), keep = n_eff / n under the noise's autocorrelation. A zero floor (a noiseless
-    log) still ranks cells by mean x sqrt(n_eff) through the tiny stand-in for sigma."""
-    return float(mean / (max(sigma, 1e-300) / np.sqrt(n * keep)))
+def _cell(axis, dim, lo, hi, share, rc, m, excess, sigma, keep):
+    """One map entry for the rows m of the clipped residual rc. z is the cell's mean over its
+    standard error were the cell white noise at the floor sigma; z_eff the same over sqrt(n keep)
+    rows, keep = n_eff / n under the noise's autocorrelation. A zero floor (a noiseless log)
+    gives z 0 and still ranks cells by mean x sqrt(n_eff) through the tiny stand-in for sigma."""
+    n = int(m.sum())
+    mean = float(np.mean(rc[m]))
+    return {"axis": AXES[axis], "dimension": dim, "from": lo, "to": hi,
+            "share": round(share, 4), "n": n, "mean": mean,
+            "rms": float(np.sqrt(np.mean(rc[m] ** 2))), "excess": excess,
+            "z": float(mean / (sigma / np.sqrt(n))) if sigma > 0 else 0.0,
+            "z_eff": float(mean / (max(sigma, 1e-300) / np.sqrt(n * keep)))}
 
 
 def localise(p, resid, sigma, ctx, top=40):
@@ -102,14 +109,7 @@ def localise(p, resid, sigma, ctx, top=40):
             # for samples not being independent.
             if e < 3 * sigma[a] ** 2 * np.sqrt(2 * n) * 3:
                 continue
-            share = min(1.0, e / overall)
-            mean = float(np.mean(rc[m]))
-            out.append({"axis": AXES[a], "dimension": dim, "from": lo, "to": hi,
-                        "share": round(share, 4), "n": n, "mean": mean,
-                        "rms": float(np.sqrt(np.mean(rc[m] ** 2))),
-                        "excess": e,
-                        "z": float(mean / (sigma[a] / np.sqrt(n))) if sigma[a] > 0 else 0.0,
-                        "z_eff": _z_eff(mean, n, sigma[a], keep)})
+            out.append(_cell(a, dim, lo, hi, min(1.0, e / overall), rc, m, e, sigma[a], keep))
             found = True
         if not found:
             # The axis's excess is beyond noise but spread so evenly (a coarse temperature
@@ -117,14 +117,7 @@ def localise(p, resid, sigma, ctx, top=40):
             # to pass on its own: a cell's excess grows with n, its noise threshold with
             # sqrt(n), so an even spread is significant only over the whole log. Say so with
             # one cell over the whole temperature range rather than an empty map.
-            m = m0
-            n = int(m.sum())
-            mean = float(np.mean(rc[m]))
-            out.append({"axis": AXES[a], "dimension": "temperature",
-                        "from": round(float(ctx.tmin), 4), "to": round(float(ctx.tmax), 4),
-                        "share": round(min(1.0, totals[a] / overall), 4), "n": n, "mean": mean,
-                        "rms": float(np.sqrt(np.mean(rc[m] ** 2))), "excess": totals[a],
-                        "z": float(mean / (sigma[a] / np.sqrt(n))) if sigma[a] > 0 else 0.0,
-                        "z_eff": _z_eff(mean, n, sigma[a], keep)})
+            out.append(_cell(a, "temperature", round(float(ctx.tmin), 4), round(float(ctx.tmax), 4),
+                             min(1.0, totals[a] / overall), rc, m0, totals[a], sigma[a], keep))
     out.sort(key=lambda c: -abs(c["z_eff"]))
     return out[:top]
