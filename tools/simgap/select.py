@@ -237,8 +237,8 @@ class Greedy:
         if p_a is None:
             return z
         p_t = float(stats.norm.sf(z))
-        x2 = -2.0 * (np.log(max(p_t, 1e-300)) + np.log(max(p_a, 1e-300)))
-        p_f = float(stats.chi2.sf(x2, 4))
+        p_f = float(stats.combine_pvalues([max(p_t, 1e-300), max(p_a, 1e-300)],
+                                          method="fisher").pvalue)
         z_f = float(stats.norm.isf(max(p_f, 1e-300)))
         added = [b for b in with_ if b not in without]
         self.confirmations.append({
