@@ -22,11 +22,9 @@ EFFECT_SITUATIONS = [s for s in wander.SITUATIONS if s not in wandercheck.NO_VER
 _SWEPT = "seeds 21-81"
 KNOWN_GAPS = {
     ("no_verdict", "off_catalogue"): "issue 22: a verdict on 1/20 seeds 1-20 (9) and 6/61 " + _SWEPT +
-        " (29, 30, 43, 65, 78: a temp_rate on one axis; 69: a drift); with the calibrated stage B and"
-        " the withheld half-A confirmation (2026-11-28) 0/20 seeds 1-20 and 0/20 seeds 41-60",
+        " (29, 30, 43, 65, 78: a temp_rate on one axis; 69: a drift)",
     ("no_verdict", "rw_alone"): "issue 22: a verdict on 0/20 seeds 1-20 and 1/61 " + _SWEPT +
-        " (28: a drift on z); with the calibrated stage B and the withheld half-A confirmation"
-        " (2026-11-28) 0/20 seeds 1-20, 0/20 seeds 41-60 (28 gone on its branch)",
+        " (28: a drift on z)",
     ("alone", "lag_rw"): "issue 22: named alone on 20/20 seeds 1-20 and 58/61 " + _SWEPT +
         " (37, 38: a drift beside it; 59: read as hysteresis), missed at WANDER_SEED=22105 (the lag"
         " refused on the in-sample path: its held-out guard, z -10.6 on the other segments)",
@@ -37,12 +35,8 @@ KNOWN_GAPS = {
     ("rms", "hyst_rw"): "issue 22: within 1.25x on 20/20 seeds 1-20 and 60/61 " + _SWEPT +
         " (24: 2.72x, not named)",
     ("alone", "aging"): "issue 22: named alone on 20/20 seeds 1-20 and 60/61 " + _SWEPT +
-        " (61: the drift on z not named); with the calibrated stage B and the withheld half-A"
-        " confirmation (2026-11-28) 20/20 seeds 1-20, 19/20 seeds 41-60 (59: not named, half A"
-        " p 0.51)",
-    ("rms", "aging"): "issue 22: within 1.25x on 20/20 seeds 1-20 and 60/61 " + _SWEPT + " (61: 1.36x);"
-        " with the calibrated stage B and the withheld half-A confirmation (2026-11-28) 20/20"
-        " seeds 1-20, 19/20 seeds 41-60 (59: 1.38x)",
+        " (61: the drift on z not named)",
+    ("rms", "aging"): "issue 22: within 1.25x on 20/20 seeds 1-20 and 60/61 " + _SWEPT + " (61: 1.36x)",
     ("alone", "rw_drift"): "issue 22: named alone on 20/20 seeds 1-20 and 59/61 " + _SWEPT +
         " (49: a temp_rate beside it; 65: the smaller of two drifts not named)",
     ("rms", "rw_drift"): "issue 22: within 1.25x on 19/20 seeds 1-20 (3: 1.26x) and 57/61 " + _SWEPT +
