@@ -42,7 +42,15 @@ def test_the_json_reports_the_split_it_used():
     assert sp["scored_on"] == ("half B" if confirmed else "whole")
     if confirmed:
         assert int(ex["withheld_rows"].sum()) == sp["rows_b"]
+    seen = set()
     for c in sp["confirmations"]:      # every use: refused only by the scale, on the test's level
         assert c["z_chi2"] >= c["z_pass"] > c["z_train"]
         assert 0 <= c["p_withheld_a"] <= 1 and c["p_combined"] <= 1
+        # half A is consulted once per (effect, axis); a later stage reuses that answer
+        key = (c["effect"], c["axis"])
+        assert c["reused"] == (key in seen)
+        seen.add(key)
+        # the effect must beat both no effect and the clock curve: the larger p decides
+        parts = [p for p in (c["p_withheld_a_vs_none"], c["p_withheld_a_vs_curve"]) if p is not None]
+        assert c["p_withheld_a"] == max(parts)
     assert res["verdict"] == []         # no effect planted, a walk: nothing named
