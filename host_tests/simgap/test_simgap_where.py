@@ -25,7 +25,7 @@ def test_excess_spread_under_white_noise_matches_a_simulation():
     excess = np.sum(r[:, rows] ** 2, axis=1) - rows.sum() * s2
     # _excess_sd given the floor read from the series itself (as the diagnosis gives it): its
     # value over that floor squared depends on the rows and pairs only; at the true sigma:
-    sd = where._excess_sd(r[0], np.sqrt(s2[0]), rows, pairs) / s2[0] * sigma ** 2
+    sd = where._excess_sd(np.sqrt(s2[0]), np.sqrt(s2[0]), rows, pairs) / s2[0] * sigma ** 2
     z = excess / sd
     # 4,000 draws: the mean's standard error is 0.016 and the sd's 1.1 %; the bounds are ~5 of them.
     assert abs(np.mean(z)) < 0.08

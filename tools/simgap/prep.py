@@ -104,7 +104,7 @@ def output_step(log):
     return q
 
 
-def _steady_pairs(log, mask):
+def steady_pairs(log, mask):
     """Consecutive row pairs inside one contiguous stretch, both rows kept by the outlier rule,
     with no change of any input (ref, acc, supply) between them: differences over these
     pairs hold the noise and not the jumps a misfit makes at an input step."""
@@ -129,6 +129,17 @@ def _steady_pairs(log, mask):
     return ok
 
 
+def difference_sigma(resid, pairs):
+    """Per-axis sqrt(mean(d^2) / 2), d the residual's first differences over the steady pairs
+    (steady_pairs): the white-noise sigma the differences read, before any quantisation floor.
+    0 for an axis without a pair."""
+    out = np.zeros(resid.shape[1])
+    for a in range(resid.shape[1]):
+        d = np.diff(resid[:, a])[pairs]
+        out[a] = float(np.sqrt(np.mean(d * d) / 2)) if d.size else 0.0
+    return out
+
+
 def noise_floor(resid, log, mask=None, q=None):
     """Per-axis white-noise sigma: RMS of first differences of a residual / sqrt 2, over the
     rows the outlier rule keeps (the same rows the residual RMS uses, so a perfect model reads
@@ -139,13 +150,8 @@ def noise_floor(resid, log, mask=None, q=None):
     residual's RMS counts them; the outlier rule (spikes) has already taken the spikes out.
     Never below q/sqrt(12) for an output quantised in steps of q."""
     q = output_step(log) if q is None else q
-    ok = _steady_pairs(log, mask)
-    out = np.zeros(3)
-    for a in range(3):
-        d = np.diff(resid[:, a])[ok]
-        s = float(np.sqrt(np.mean(d * d) / 2)) if d.size else 0.0
-        out[a] = max(s, q[a] / np.sqrt(12))
-    return out
+    s = difference_sigma(resid, steady_pairs(log, mask))
+    return np.array([max(s[a], q[a] / np.sqrt(12)) for a in range(3)])
 
 
 def spikes(log, q=None):

@@ -18,7 +18,7 @@ NBANDS = 8
 AXIS_Z = float(norm.isf(1e-6 / 3))
 
 
-def _excess_sd(r, sigma, rows, pairs):
+def _excess_sd(sigma, dsig, rows, pairs):
     """Standard deviation of the axis excess sum(r^2 over rows) - n sigma^2 when r is white
     noise at sigma and sigma^2 is read as prep.noise_floor reads it: the mean of d^2 / 2 over
     the m steady pairs (i, i+1), d their first difference. The excess is then the quadratic
@@ -28,13 +28,13 @@ def _excess_sd(r, sigma, rows, pairs):
     the lag-1 autocovariance sum r_i r_(i+1): sd sigma^2 sqrt(n), not the sigma^2 sqrt(2n)
     of n squares against a known sigma. When the floor is the output step's q / sqrt(12)
     instead (the differences read below it), sigma is a constant and the excess is n squares
-    against it: A = I on the rows."""
+    against it: A = I on the rows. dsig is what the differences read (prep.difference_sigma):
+    below sigma means the floor is the quantisation one."""
     n, m = int(rows.sum()), int(pairs.sum())
-    d = np.diff(r)[pairs]
-    if m == 0 or np.sqrt(np.mean(d * d) / 2) < sigma * (1 - 1e-9):
+    if m == 0 or dsig < sigma * (1 - 1e-9):
         return sigma ** 2 * np.sqrt(2.0 * n)
     c = n / m
-    touch = np.zeros(len(r))
+    touch = np.zeros(len(rows))
     i = np.flatnonzero(pairs)
     np.add.at(touch, i, 1.0)
     np.add.at(touch, i + 1, 1.0)
@@ -103,7 +103,8 @@ def localise(p, resid, sigma, ctx, top=40):
     covered by the misfit, 4/46 seeds against main's 2/46.)"""
     clipped, totals, sds = {}, {}, {}
     m0 = p.mask
-    pairs = prep._steady_pairs(p.log, m0)
+    pairs = prep.steady_pairs(p.log, m0)
+    dsig = prep.difference_sigma(resid, pairs)
     for a in range(3):
         r = resid[:, a]
         # Clip at 6 sigma of the residual's own robust spread so one bad stretch cannot own
@@ -112,7 +113,7 @@ def localise(p, resid, sigma, ctx, top=40):
         lim = 6 * max(1.4826 * np.median(np.abs(r[m0] - med)), sigma[a], 1e-300)
         clipped[a] = np.clip(r, med - lim, med + lim)
         totals[a] = float(np.sum(clipped[a][m0] ** 2) - m0.sum() * sigma[a] ** 2)
-        sds[a] = _excess_sd(r, sigma[a], m0, pairs)
+        sds[a] = _excess_sd(sigma[a], dsig[a], m0, pairs)
     # Only an axis whose excess is beyond what white noise at the floor gives takes part (the
     # excess's own null spread, _excess_sd). A wandering bias passes this too: its departure
     # from the sim is real, and the map shows where it lies.
