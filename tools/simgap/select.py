@@ -306,7 +306,22 @@ class Greedy:
         the Gauss-Markov term at both fits' phi), all BOOT series filtered together per grid
         point, so its cost is a few filter passes of the design, not BOOT noise searches.
         c is floored at 1: the scale only ever makes the test stricter (a c below 1 with
-        BOOT draws is within its standard error, about sqrt(2 / (BOOT df)), of 1)."""
+        BOOT draws is within its standard error, about sqrt(2 / (BOOT df)), of 1).
+
+        Why the null's noise model, although where the effect is real that fit has put the
+        effect into its walk (a larger walk, a larger c: the restricted-estimate bootstrap's
+        lost power, the full set's offset_temperature + drift pair on x, c 2.40): the
+        alternative's fit is no cure. A slow column takes part of a true walk, so under the
+        null the fit with the effect in reads a smaller walk (or a Gauss-Markov term and no
+        walk), and draws from it under-state the statistic's spread. Measured by direct null
+        simulation (series = a temperature law + white noise + a walk, the aging line
+        offered; host_tests/simgap/test_simgap_bootstrap.py is its small version): 1,000
+        draws at walk q/s2 1e-3, calibrated p below 1 % / 5 % in 1.6 % / 9.2 % with the
+        null's draws, 8.1 % / 17.2 % with the alternative's (the chi-squared alone 16.9 % /
+        37.3 %); at q/s2 2e-4 (300 draws) 4.7 % / 14.3 % against 25 % / 41 %. The smaller
+        of the two walks is the alternative's in 99 % of those draws, and a bootstrap bias
+        correction of its walk did not help (7.7 % / 18.7 %): the alternative's fit often
+        has no walk at all to correct."""
         key = (axis, tuple((b, _key(s)) for b, s in without),
                tuple((b, _key(s)) for b, s in with_))
         if key not in self._boot_cache:
@@ -314,22 +329,28 @@ class Greedy:
         return self._boot_cache[key]
 
     def _bartlett_uncached(self, axis, without, with_, i0):
+        i1 = self.noise_for(axis, with_)
+        return self._bartlett_scale(axis, without, with_, i0, i1, i0["model"])
+
+    def _bartlett_scale(self, axis, without, with_, i0, i1, mb, boot=BOOT, seed=BOOT_SEED):
+        """The scale of _bartlett with the bootstrap noise drawn from model mb (the null's
+        fitted values always the mean): _bartlett passes the null's fitted noise model, the
+        size simulations of its docstring others."""
         p = self.prob
         dt = p.ctx.dt
         m0 = i0["model"]
-        i1 = self.noise_for(axis, with_)
         mask = p.train.mask
         y = p._ymasked(axis)
         fitted = y - p.full_residual(p.train, axis, without, model=m0)[mask]
         n = len(y)
-        rng = np.random.default_rng(BOOT_SEED)
-        Y = fitted[:, None] + rng.normal(0.0, np.sqrt(m0.s2), (n, BOOT))
-        if m0.q > 0:
-            Y += np.cumsum(rng.normal(0.0, np.sqrt(m0.q), (n, BOOT)), axis=0)
-        if m0.g2 > 0:
-            d = rng.normal(0.0, np.sqrt(m0.g2 * (1 - m0.phi ** 2)), (n, BOOT))
-            d[0] = rng.normal(0.0, np.sqrt(m0.g2), BOOT)
-            Y += lfilter([1.0], [1.0, -m0.phi], d, axis=0)
+        rng = np.random.default_rng(seed)
+        Y = fitted[:, None] + rng.normal(0.0, np.sqrt(mb.s2), (n, boot))
+        if mb.q > 0:
+            Y += np.cumsum(rng.normal(0.0, np.sqrt(mb.q), (n, boot)), axis=0)
+        if mb.g2 > 0:
+            d = rng.normal(0.0, np.sqrt(mb.g2 * (1 - mb.phi ** 2)), (n, boot))
+            d[0] = rng.normal(0.0, np.sqrt(mb.g2), boot)
+            Y += lfilter([1.0], [1.0, -mb.phi], d, axis=0)
         per0 = any(BY_NAME[b].per_run for b, _ in without)
         per1 = any(BY_NAME[b].per_run for b, _ in with_)
         X0 = p._raw_design(axis, without, tuple((b, _key(s)) for b, s in without), per0)
