@@ -275,6 +275,9 @@ def diagnose(train, withheld=None, model=None):
                     worst = None
                     for i, (n, _) in enumerate(g.state[a]):
                         without = g.state[a][:i] + g.state[a][i + 1:]
+                        # Each model under its own noise model, as it would be scored: without
+                        # the effect the axis's noise model is re-fitted (finalise), and a walk
+                        # that takes the effect's place changes the fit of what remains.
                         r0 = scored(a, prob.full_residual(pw, a, without,
                                                           model=g.noise_for(a, without)["model"]))
                         w = _rms(r0)
