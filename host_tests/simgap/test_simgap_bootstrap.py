@@ -49,14 +49,15 @@ def _calibrated_p(shape_kind, draws, level, name):
 
 def test_aging_line_against_a_walk_calibrated_at_one_percent():
     # The aging line is what a walk looks like on one power-on: the chi-squared reference
-    # passes it at nominal 1 % in 16.9 % of null series (1,000 draws, the rate this test
-    # would see without the scale); the bootstrap from the null's fitted noise in 1.6 %
-    # (not exactly sized: the scale matches the statistic's mean, not its tail), from the
-    # alternative's fitted noise in 8.1 % (why _bartlett draws from the null's). Bound: at
-    # most 13 of 300 - a rate of 1.6 % fails this 1 run in 2,500 (binomial P(>= 14 | 300,
-    # 0.016) = 4e-4), 2 % 1 in 300; 8.1 % fails it 99 % of runs, the chi-squared alone all.
+    # passes it at nominal 1 % in 16-21 % of null series (the rate this test would see
+    # without the scale); the bootstrap from the null's fitted noise in 1.6 % (1,000 draws
+    # on one log) and 2.3 % (49 of 2,100 over 7 TEMPCOMP_SEEDs' logs): not exactly sized, the
+    # scale matches the statistic's mean, not its tail. From the alternative's fitted noise:
+    # 8.1 % (1,000 draws), 18-33 of 300 at 3 seeds - why _bartlett draws from the null's.
+    # Bound: at most 16 of 300 - at 2.3 % this fails 1 run in 1,400 (binomial P(>= 17 | 300,
+    # 0.023) = 7e-4); at 6 % / 8 % it fails 63 % / 95 % of runs, the chi-squared alone all.
     s, hits, hits_chi2 = _calibrated_p("linear", 300, 0.01, "simgap_bootstrap/size/linear")
-    assert hits <= 13, (s, hits, hits_chi2)
+    assert hits <= 16, (s, hits, hits_chi2)
 
 
 def test_settling_exponential_against_a_walk_calibrated_at_five_percent():
