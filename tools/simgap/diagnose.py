@@ -269,12 +269,17 @@ def diagnose(train, withheld=None, model=None):
             for a in range(3):
                 final_wanders = not prob.noise[a].is_white
                 while g.state[a]:
-                    rf = scored(a, prob.full_residual(pw, a, g.state[a]))
+                    rf = scored(a, prob.full_residual(pw, a, g.state[a],
+                                                      model=g.noise_for(a, g.state[a])["model"]))
                     full = _rms(rf)
                     worst = None
                     for i, (n, _) in enumerate(g.state[a]):
                         without = g.state[a][:i] + g.state[a][i + 1:]
-                        r0 = scored(a, prob.full_residual(pw, a, without))
+                        # Each model under its own noise model, as it would be scored: without
+                        # the effect the axis's noise model is re-fitted (finalise), and a walk
+                        # that takes the effect's place changes the fit of what remains.
+                        r0 = scored(a, prob.full_residual(pw, a, without,
+                                                          model=g.noise_for(a, without)["model"]))
                         w = _rms(r0)
                         lo = None
                         if (final_wanders or wanders_without(a, i)) and w >= full:
