@@ -138,3 +138,18 @@ def test_planted_situation(name):
         assert lo <= e["shrink"] <= hi and lo > 0.2
     assert not any(w["code"] == "implausible_coefficient" and w["effect"] == "temp_rate"
                    and name == "lag_many_times_slope" and w.get("kept_out") for w in res["warnings"])
+
+
+def test_bartlett_profile_peak_stays_inside_the_grid():
+    # The stage B bootstrap's profile over the walk-ratio grid (select._grid_peak): at an
+    # interior maximum the parabola through three points of a quadratic is its exact peak
+    # (5 at x = 0.3 for 5 - (x - 0.3)^2 on x = -2..2); at the grid's edge (a profile still
+    # rising) the value is the edge's own, never the parabola's extrapolation (through
+    # -1000, 9, 10 that would be 9 + 1010^2 / 8064 = 135.5).
+    from tools.simgap.select import _grid_peak
+    x = np.arange(-2.0, 3.0)
+    quad = 5 - (x - 0.3) ** 2
+    edge = np.array([-2000.0, -1500.0, -1000.0, 9.0, 10.0])
+    got = _grid_peak(np.column_stack([quad, edge]))
+    assert got[0] == pytest.approx(5.0, abs=1e-12)
+    assert got[1] == 10.0

@@ -364,9 +364,30 @@ class UnloggedStep(Effect):
         return (-np.expm1(-np.maximum(p.log.t - t0, 0.0) / tau))[:, None]
 
 
+class ClockCurve(Effect):
+    """Not a catalogue effect: a shapeless smooth curve in clock time (Legendre polynomials
+    of degrees 1..DEG over the training log's span, held at its edge value beyond it), the
+    alternative a clock-tied effect must beat on half A of the withheld log (select.
+    Greedy._consult). DEG = 6 gives it more freedom than any catalogue time shape (drift's
+    richest family, exp+linear, has 2 columns and a time constant), so a catalogue shape
+    that is really right predicts a repeat at least as well with fewer coefficients, while
+    an off-catalogue cause on the same schedule is taken up by the curve as well."""
+    name = "clock_curve"
+    DEG = 6
+
+    def shapes(self, ctx):
+        return [self.DEG]
+
+    def columns(self, ctx, p, shape, axis):
+        x = np.clip(2.0 * (p.log.t - ctx.t_first) / ctx.span - 1.0, -1.0, 1.0)
+        return np.polynomial.legendre.legvander(x, int(shape))[:, 1:]
+
+
 EFFECTS = [OffsetTemperature(), SensitivityTemperature(), Hysteresis(), TempRate(), CrossAxis(),
            Nonlinearity(), GSensitivity(), Supply(), Drift(), TurnOnBias(), TempQuantization()]
 BY_NAME = {e.name: e for e in EFFECTS}
 assert tuple(BY_NAME) == CATALOGUE
 STEP = UnloggedStep()
 BY_NAME[STEP.name] = STEP     # for the fit only: never a candidate, never in a verdict
+CURVE = ClockCurve()
+BY_NAME[CURVE.name] = CURVE   # half A's alternative only (select.Greedy._consult)

@@ -73,6 +73,17 @@ def text(res):
         f"{a} {fin['withheld_rms'][a]:.4g}{_iv(a)} ({_fmt_ratio(fin['ratio_to_noise'][a])} the model "
         f"floor, {_fmt_ratio(fin.get('ratio_to_white_floor', {}).get(a))} the white floor)"
         for a in fin["withheld_rms"]) + f" {u}")
+    sp = res.get("withheld_split")
+    if sp and sp["confirmations"]:
+        L.append(f"withheld log split in {sp['blocks']} alternating blocks of {sp['block_rows']} rows: "
+                 f"half A ({sp['rows_a']} rows) confirms, half B ({sp['rows_b']} rows) scores "
+                 f"{'the figures above' if sp['scored_on'] == 'half B' else 'nothing (A confirmed nothing; the whole log scored)'}")
+        for c in sp["confirmations"]:
+            L.append(f"{'confirmed' if c['confirmed'] else 'not confirmed'} on withheld half A: "
+                     f"{c['effect']} on {c['axis']}, refused on the training log only by the wander's "
+                     f"scale (z {c['z_chi2']:.2f} at chi-squared, {c['z_train']:.2f} calibrated); "
+                     f"p on half A {c['p_withheld_a']:.2g}, Fisher-combined p {c['p_combined']:.2g} "
+                     f"(needs z >= {c['z_pass']:.2f})")
     for c in res.get("not_confirmed", []):
         if c.get("reason"):
             L.append(f"not confirmed: {c['effect']} on {c['axis']} ({c['withheld_rms_without']:.4g} -> "
