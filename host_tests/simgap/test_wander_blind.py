@@ -22,7 +22,8 @@ EFFECT_SITUATIONS = [s for s in wander.SITUATIONS if s not in wandercheck.NO_VER
 _SWEPT = "seeds 21-81"
 KNOWN_GAPS = {
     ("no_verdict", "off_catalogue"): "issue 22: a verdict on 1/20 seeds 1-20 (9) and 6/61 " + _SWEPT +
-        " (29, 30, 43, 65, 78: a temp_rate on one axis; 69: a drift)",
+        " (29, 30, 43, 65, 78: a temp_rate on one axis; 69: a drift); with the withheld half-A"
+        " confirmation (2026-11-28, fourth round) 0/20 on 1-20 and 21-40",
     ("no_verdict", "rw_alone"): "issue 22: a verdict on 0/20 seeds 1-20 and 1/61 " + _SWEPT +
         " (28: a drift on z)",
     ("alone", "lag_rw"): "issue 22: named alone on 20/20 seeds 1-20 and 58/61 " + _SWEPT +
@@ -35,8 +36,9 @@ KNOWN_GAPS = {
     ("rms", "hyst_rw"): "issue 22: within 1.25x on 20/20 seeds 1-20 and 60/61 " + _SWEPT +
         " (24: 2.72x, not named)",
     ("alone", "aging"): "issue 22: named alone on 20/20 seeds 1-20 and 60/61 " + _SWEPT +
-        " (61: the drift on z not named)",
-    ("rms", "aging"): "issue 22: within 1.25x on 20/20 seeds 1-20 and 60/61 " + _SWEPT + " (61: 1.36x)",
+        " (61: the drift on z not named); also missed at WANDER_SEED=10255 (y's drift not named)",
+    ("rms", "aging"): "issue 22: within 1.25x on 20/20 seeds 1-20 and 60/61 " + _SWEPT + " (61: 1.36x);"
+        " also missed at WANDER_SEED=10255 (1.79x)",
     ("alone", "rw_drift"): "issue 22: named alone on 20/20 seeds 1-20 and 59/61 " + _SWEPT +
         " (49: a temp_rate beside it; 65: the smaller of two drifts not named)",
     ("rms", "rw_drift"): "issue 22: within 1.25x on 19/20 seeds 1-20 (3: 1.26x) and 57/61 " + _SWEPT +
