@@ -32,21 +32,10 @@ def test_reduced_set_has_every_kind_of_case():
     assert sum(not c[1] for c in kinds) >= 3 and any(c[2] for c in kinds)
 
 
-# Issue 22: the reduced set with the noise branch's fixes (dfe2275), swept over seeds 1-20 (python -m
-# tools gap-check --small, seeds 1-9 by the noise branch, 10-20 on main 3e677d0, 2026-11-27): every
-# target at 19 of 20 seeds; at seed 20 the single offset_temperature case got no verdict (3.21x).
-# These two checks each hold on 19/20, within the issue's target, but at the random seed of a run
-# they fail about 1 run in 20: a miss is an XFAIL with its seed, a pass an XPASS. Every other check
-# here must pass at any seed. Seeds 20, 105 and 64346 meet every target since held-out segments are
-# scored only where the rows their fit keeps have been (docs/simgap.md, fourth round of 2026-11-28);
-# the markers stay until a sweep of 50 or more seeds shows no miss.
-SEED_20 = ("issue 22: 19/20 seeds of the reduced set (seed 20: offset_temperature not named, 3.21x);"
-           " the 1.25x check also missed at GAP_SEED=51330 (1.28x) and 64346 (offset_temperature named,"
-           " 2.25x), both make-test runs; seeds 101-112: 11/12 (105: offset_temperature not named, 3.46x);"
-           " 20, 105 and 64346 met since the held-out range fix (3b63ac5), not yet swept over 50 seeds")
-
-
-@pytest.mark.xfail(strict=False, reason=SEED_20)
+# Issue 22: the reduced set's misses at seed 20 (offset_temperature not named, 3.21x), GAP_SEED 105
+# and 64346 were carried as known gaps (xfail) until the held-out range fix (3b63ac5); on a4653fb
+# `python -m tools gap-check --small` met every target on seeds 1-8 and 19-60 (50 seeds, 2026-11-28),
+# so these checks must pass at any seed.
 def test_every_single_effect_named_first(rows):
     bad = [(r["case"], r["verdict"]) for r in rows if len(r["truth"]) == 1 and not r["attributed"]]
     assert not bad, "seed %d: %s" % (SEED, bad)
@@ -62,7 +51,6 @@ def test_nothing_claimed_without_an_effect(rows):
     assert not bad, "seed %d: %s" % (SEED, bad)
 
 
-@pytest.mark.xfail(strict=False, reason=SEED_20)
 def test_withheld_residual_within_25_percent_of_true_noise(rows):
     bad = [(r["case"], round(r["ratio"], 3)) for r in rows if r["ratio"] > 1.25]
     assert not bad, "seed %d: %s" % (SEED, bad)
