@@ -301,9 +301,7 @@ class Problem:
                     z[out_i] = 0.0
                     after = out_i + 1
                     after = after[after < len(z)]
-                    inside = np.zeros(len(z), bool)
-                    inside[i[sc]] = True
-                    after = after[inside[after]]
+                    after = after[np.isin(after, i[sc])]
                     rst = np.union1d(rst, after)
                     if model.walks:
                         diffuse = np.union1d(diffuse, after)

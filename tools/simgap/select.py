@@ -107,8 +107,7 @@ class Greedy:
         self.stepped = []                       # effects an unlogged step explains as well
         self.confirm = None                     # half A of the withheld log (diagnose sets it)
         self.confirmations = []                 # every use of it (_confirm)
-        self._consulted = {}                    # (effect, axis) -> half A's p (_confirm)
-        self._consult_detail = {}               # (effect, axis) -> its two parts (_consult)
+        self._consulted = {}    # (effect, axis) -> half A's p and its two parts (_consult)
         self._ncand = 1
         self._noise_cache = {}
         self._boot_cache = {}
@@ -240,15 +239,14 @@ class Greedy:
         added = [b for b in with_ if b not in without]
         name = added[-1][0] if added else with_[-1][0]
         key = (name, axis)
-        if key in self._consulted:
-            # One consultation of half A per (effect, axis) per diagnosis: the same effect
-            # put to the same half again at a later stage (prune, reshape, the step check)
-            # would be a fresh chance at the same level on the same rows (a multiple test
-            # with no correction). Its first answer stands for every later stage.
-            p_a = self._consulted[key]
-        else:
-            p_a = self._consult(axis, without, with_, name)
-            self._consulted[key] = p_a
+        # One consultation of half A per (effect, axis) per diagnosis: the same effect put to
+        # the same half again at a later stage (prune, reshape, the step check) would be a
+        # fresh chance at the same level on the same rows (a multiple test with no
+        # correction). Its first answer stands for every later stage.
+        reused = key in self._consulted
+        if not reused:
+            self._consulted[key] = self._consult(axis, without, with_, name)
+        p_a, parts = self._consulted[key]
         if p_a is None:
             return z
         p_t = float(stats.norm.sf(z))
@@ -258,9 +256,7 @@ class Greedy:
         self.confirmations.append({
             "effect": name, "axis": axis,
             "z_train": z, "z_chi2": z_chi2, "gain": float(gain), "p_train": p_t,
-            "p_withheld_a": float(p_a), **self._consult_detail.get(key, {}),
-            "reused": len([c for c in self.confirmations
-                           if (c["effect"], c["axis"]) == key]) > 0,
+            "p_withheld_a": float(p_a), **parts, "reused": reused,
             "p_combined": p_f, "z_pass": z_pass,
             "confirmed": bool(z_f >= z_pass)})
         return z_f if z_f >= z_pass else z
@@ -282,17 +278,17 @@ class Greedy:
         the same level with no correction (each component test is at that level). The
         unlogged step itself (effects.UnloggedStep) was tried first as this alternative and
         changed nothing (p against it within 1 % of p against nothing on every humidity log:
-        under a walk a frozen step is one innovation). None where A has too few rows."""
+        under a walk a frozen step is one innovation). Returns (p, its two parts); p is None
+        where A has too few rows."""
         p_a = self.confirm(axis, without, with_)
-        self._consult_detail[(name, axis)] = {"p_withheld_a_vs_none": p_a,
-                                              "p_withheld_a_vs_curve": None}
+        parts = {"p_withheld_a_vs_none": p_a, "p_withheld_a_vs_curve": None}
         if p_a is None or BY_NAME[name].per_run or any(
                 b == "unlogged_step" for b, _ in without):
-            return p_a
+            return p_a, parts
         curve = BY_NAME["clock_curve"]
         p_c = self.confirm(axis, without + [(curve.name, curve.DEG)], with_)
-        self._consult_detail[(name, axis)]["p_withheld_a_vs_curve"] = p_c
-        return p_a if p_c is None else max(p_a, p_c)
+        parts["p_withheld_a_vs_curve"] = p_c
+        return (p_a if p_c is None else max(p_a, p_c)), parts
 
     def _bartlett(self, axis, without, with_, i0):
         """Bartlett-type scale of the likelihood-ratio statistic of with_ against without,
