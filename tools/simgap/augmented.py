@@ -48,7 +48,8 @@ def effect_entry(ctx, name, shape, coef, axis, causal_temp):
                      clamp_c=[ctx.tmin, ctx.tmax], coef=c)
     elif name == "hysteresis":
         w, tau = shape if isinstance(shape, tuple) else (shape, 0.0)
-        e.update(widths_c=[_f(w), _f(2 * w), _f(4 * w)], lag_tau_s=_f(tau), coef=c)
+        e.update(widths_c=[_f(w), _f(2 * w), _f(4 * w)], lag_tau_s=_f(tau),
+                 input="reading" if causal_temp else "destaired", coef=c)
     elif name == "temp_rate":
         t1, t2 = TempRate.time_constants(shape)
         e.update(tau_s=[_f(t1), _f(t2)], input="reading" if causal_temp else "destaired",
@@ -171,8 +172,9 @@ def _effect_value(model, e, log, p, axis, T, dT, ref):
         return ref * _bspline(e, T)
     if n == "hysteresis":
         tau = e["lag_tau_s"]
-        u = F.lowpass(p, tau) if tau else T
-        return sum(ck * (F.play(p, w, tau) - u) for ck, w in zip(c, e["widths_c"]))
+        q = e.get("input") == "destaired"
+        u = F.lowpass(p, tau, q) if tau else (F.unstair(p, 0.0) if q else T)
+        return sum(ck * (F.play(p, w, tau, q) - u) for ck, w in zip(c, e["widths_c"]))
     if n == "temp_rate":
         q = e["input"] == "destaired"
         u = F.unstair(p, 0.0) if q else T

@@ -60,6 +60,9 @@ def _effect(b, e, i, ax, notes):
     s0 = _s0(ax)
     if name == "hysteresis":
         lag = float(e.get("lag_tau_s", 0.0))
+        if e.get("input") == "destaired":
+            notes.append("hysteresis on axis %d: the host used the destaired reading; the board "
+                         "uses its reading" % i)
         for w, c in zip(e["widths_c"], e["coef"]):
             p = {"width": float(w)}
             if lag > 0:

@@ -97,15 +97,15 @@ def lowpass(p, tau, destair=False):
     return y
 
 
-def play(p, width, tau=0.0):
+def play(p, width, tau=0.0, destair=False):
     """Play (backlash) operator on the temperature reading, or with tau > 0 on its first-order
     low pass lowpass(p, tau) (hysteresis acting on a lagging internal temperature): the state
     only moves once the input has moved more than width/2 away from it, so it remembers the
     last reversal."""
-    key = ("play", width, tau)
+    key = ("play", width, tau, destair)
     if key in p.cache:
         return p.cache[key]
-    x = lowpass(p, tau) if tau else p.log.temp
+    x = lowpass(p, tau, destair) if tau else (unstair(p, 0.0) if destair else p.log.temp)
     y = np.empty_like(x)
     h = width / 2
     for a, b in _restart_ranges(p.restart):
