@@ -26,9 +26,9 @@ KNOWN_GAPS = {
     ("no_verdict", "off_catalogue"): "issue 22: a verdict on 1/70 seeds " + _FINAL + " (69: a drift);"
         " on older code also 9, 29, 30, 43, 65, 78 (a temp_rate on one axis)",
     ("alone", "aging"): "issue 22: named alone on 68/70 seeds " + _FINAL + " (59, 61: the drift on z not"
-        " named); also missed at WANDER_SEED=10255 (y's drift not named)",
+        " named); also missed at WANDER_SEED=10255 (y's drift not named) and 46378 (a CI run of 2026-11-28)",
     ("rms", "aging"): "issue 22: within 1.25x on 68/70 seeds " + _FINAL + " (59: 1.38x, 61: 1.36x);"
-        " also missed at WANDER_SEED=10255 (1.79x)",
+        " also missed at WANDER_SEED=10255 (1.79x) and 46378 (a CI run of 2026-11-28)",
     ("alone", "rw_drift"): "issue 22: named alone on 49/50 seeds " + _FINAL + " (65: the smaller of"
         " two drifts not named; on older code also 49: a temp_rate beside it)",
     ("rms", "rw_drift"): "issue 22: within 1.25x on 48/50 seeds " + _FINAL + " (3: 1.26x, 47: 1.58x:"
