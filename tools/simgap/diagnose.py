@@ -51,11 +51,12 @@ def _thin(log):
     return log.subset(slice(None, None, k)), k
 
 
-def _withheld_split(prob, inside):
-    """Half A (confirms) and half B (scores) of the withheld log's covered rows (inside:
-    coverage.covered): SPLIT_BLOCKS contiguous blocks alternating A, B, A, ... None when the
-    withheld log lies outside the training coverage (it then decides nothing)."""
+def _withheld_split(prob, train, withheld):
+    """Half A (confirms) and half B (scores) of the withheld log's covered rows: SPLIT_BLOCKS
+    contiguous blocks alternating A, B, A, ... None when the withheld log lies outside the
+    training coverage (it then decides nothing)."""
     pw = prob.withheld
+    inside = coverage.covered(train, withheld)
     if float(np.mean(inside)) < COVERED_MIN:
         return None
     idx = np.flatnonzero(pw.mask & inside)
@@ -63,11 +64,11 @@ def _withheld_split(prob, inside):
         return None
     block = int(np.ceil(len(idx) / SPLIT_BLOCKS))
     blk = np.arange(len(idx)) // block
-    a = np.zeros(len(inside), bool)
-    b = np.zeros(len(inside), bool)
+    a = np.zeros(len(withheld), bool)
+    b = np.zeros(len(withheld), bool)
     a[idx[blk % 2 == 0]] = True
     b[idx[blk % 2 == 1]] = True
-    bid = np.full(len(inside), -1)
+    bid = np.full(len(withheld), -1)
     bid[idx] = blk
     return {"a": a, "b": b, "block_id": bid, "block_rows": block}
 
@@ -144,8 +145,7 @@ def diagnose(train, withheld=None, model=None):
 
     # 2. Choose effects under the noise model on held-out segments of the training log.
     g = Greedy(prob, sigma_t)
-    inside = coverage.covered(train, withheld) if withheld is not None else None
-    split = _withheld_split(prob, inside) if withheld is not None else None
+    split = _withheld_split(prob, train, withheld) if withheld is not None else None
     if split is not None:
         # An effect stage B refuses only for the wander's Bartlett scale goes to half A of the
         # withheld log (Greedy._confirm); half B alone then scores whatever A confirmed.
@@ -196,11 +196,10 @@ def diagnose(train, withheld=None, model=None):
     extras = {"prob": prob, "base_train": base_t, "greedy": g}
     tob_shift = {}
     not_confirmed = []
-    # Half A confirmed something (selection is over: nothing consults it after this).
-    on_b = split is not None and any(c["confirmed"] for c in g.confirmations)
     if withheld is not None:
         pw = prob.withheld
         cov["withheld"] = coverage.describe(withheld)
+        inside = coverage.covered(train, withheld)
         frac = float(np.mean(inside))
         cov["withheld_covered_fraction"] = frac
         cov["differences"] = coverage.differences(cov["train"], cov["withheld"])
@@ -218,12 +217,13 @@ def diagnose(train, withheld=None, model=None):
                 "it is scored on the covered rows only and no effect rests on it",
                 covered_fraction=frac))
         rows = pw.mask & inside
-        if on_b:
+        if split is not None and any(c["confirmed"] for c in g.confirmations):
             # Half A confirmed an effect: the final residual, the shrinks and the veto come
             # from half B alone, which chose nothing.
             rows = rows & split["b"]
         if rows.sum() < 50:
             rows = pw.mask.copy()   # nothing covered: report on all rows, flagged below
+        on_b = split is not None and any(c["confirmed"] for c in g.confirmations)
         source = f"withheld log {withheld.name}" + (
             f" ({int(rows.sum())} covered rows)" if outside else "") + (
             f" (half B: {int(rows.sum())} rows in {SPLIT_BLOCKS // 2} blocks; half A confirmed "
@@ -492,7 +492,7 @@ def diagnose(train, withheld=None, model=None):
         "untried": [{"name": n, "reason": r} for n, r in g.untried.items()],
         "waterfall": waterfall,
         "withheld_source": source,
-        "withheld_split": _split_json(split, g, on_b),
+        "withheld_split": _split_json(split, g, withheld is not None and not outside),
         "selected_on": f"held-out segments of the training log ({prob.nfold} contiguous blocks)",
         "unit": train.unit,
         "sim": "given model" if model is not None else "fitted on the training log",
@@ -510,11 +510,12 @@ def diagnose(train, withheld=None, model=None):
     return result, extras
 
 
-def _split_json(split, g, on_b):
+def _split_json(split, g, used):
     """The withheld log's halves: A confirms (Greedy._confirm), B scores when A confirmed
-    anything (on_b), else the whole covered withheld log scores."""
+    anything, else the whole covered withheld log scores."""
     if split is None:
         return None
+    on_b = used and any(c["confirmed"] for c in g.confirmations)
     return {"block_rows": split["block_rows"], "blocks": SPLIT_BLOCKS,
             "rows_a": int(split["a"].sum()), "rows_b": int(split["b"].sum()),
             "scored_on": "half B" if on_b else "whole",

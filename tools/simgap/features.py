@@ -97,15 +97,6 @@ def lowpass(p, tau, destair=False):
     return y
 
 
-def temperature(p, tau=0.0, destair=False):
-    """The temperature an effect acts on: the reading, or its de-staired estimate (unstair)
-    where destair, low-passed with time constant tau when tau > 0 (a lagging internal
-    temperature)."""
-    if tau:
-        return lowpass(p, tau, destair)
-    return unstair(p, 0.0) if destair else p.log.temp
-
-
 def play(p, width, tau=0.0, destair=False):
     """Play (backlash) operator on the temperature reading, or with tau > 0 on its first-order
     low pass lowpass(p, tau) (hysteresis acting on a lagging internal temperature): the state
@@ -114,7 +105,7 @@ def play(p, width, tau=0.0, destair=False):
     key = ("play", width, tau, destair)
     if key in p.cache:
         return p.cache[key]
-    x = temperature(p, tau, destair)
+    x = lowpass(p, tau, destair) if tau else (unstair(p, 0.0) if destair else p.log.temp)
     y = np.empty_like(x)
     h = width / 2
     for a, b in _restart_ranges(p.restart):
