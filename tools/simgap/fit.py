@@ -380,19 +380,19 @@ class Problem:
             if model.walks and len(st) > 1:
                 cols.append(N.level_columns(len(X), st, model)[:, 1:])
             cols.append(self._ymasked(axis)[:, None])
-            self._zraw = (zkey, np.column_stack(cols))
-        Z = N.whiten(self._zraw[1], model, st)
-        k = Z.shape[1] - 1
-        y = Z[:, k]
+            # one row per column: the filter runs along contiguous memory (noise.whiten)
+            self._zraw = (zkey, np.ascontiguousarray(np.column_stack(cols).T))
+        Z = N.whiten(self._zraw[1], model, st, rows=False)
+        k = Z.shape[0] - 1
+        y = Z[k]
         if k == 0:
             return y
-        Xw = Z[:, :k]
-        G = Z.T @ Z
+        G = Z @ Z.T
         n = len(y)
         scale = np.sqrt(np.diag(G)[:k] / n)
         scale[scale == 0] = 1.0
         beta = _solve(G[:k, :k] / np.outer(scale, scale), G[:k, k] / scale, RCOND_WALK)
-        return y - Xw @ (beta / scale)
+        return y - (beta / scale) @ Z[:k]
 
     def _ymasked(self, axis):
         key = ("ymasked", axis)

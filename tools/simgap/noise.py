@@ -18,6 +18,7 @@ import numpy as np
 from scipy import optimize, stats
 from scipy.signal import lfilter
 
+TINY = 1e-280        # filtered values below this are flushed to zero (whiten)
 MIN_BLOCKS = 8        # fewer independent blocks than this cannot support a finding
 CI = 0.90             # confidence level of every interval the tool reports
 TERM_GAIN = 3.0       # nats a noise term (random walk, Gauss-Markov) must add to the likelihood
@@ -326,19 +327,32 @@ def _whitening(s2, q, g2, phi):
     return ar, ma, var
 
 
-def whiten(x, model, starts):
+def whiten(x, model, starts, rows=True):
     """Innovations of columns x (n, k) or (n,) under the model, the filter restarted (zero
-    state) at each index in starts (starts[0] == 0)."""
+    state) at each index in starts (starts[0] == 0). rows=False takes x as (k, n), one series
+    per row: lfilter runs ~1.4x faster along contiguous memory."""
     b, a, _ = model.filter()
     if len(b) == 1 and len(a) == 1:
         return x
     x = np.asarray(x, float)
+    ax = 0 if rows else -1
     if len(starts) == 1:
-        return lfilter(b, a, x, axis=0)
-    out = np.empty_like(x)
-    ends = list(starts[1:]) + [len(x)]
-    for s, e in zip(starts, ends):
-        out[s:e] = lfilter(b, a, x[s:e], axis=0)
+        out = lfilter(b, a, x, axis=ax)
+    else:
+        out = np.empty_like(x)
+        ends = list(starts[1:]) + [x.shape[ax]]
+        for s, e in zip(starts, ends):
+            if rows:
+                out[s:e] = lfilter(b, a, x[s:e], axis=0)
+            else:
+                out[..., s:e] = lfilter(b, a, x[..., s:e], axis=-1)
+    if out.ndim == 2:
+        # A column that is zero after its support (a run's indicator, a local basis function)
+        # leaves the filter's decaying tail, which rounding sticks at a few subnormal numbers
+        # (x = round(phi x) has fixed points there) for the rest of the segment: every later
+        # product with them runs ~50x slower (measured: a 29,412 x 47 Gram matrix 185 ms
+        # against 3 ms). Values below 1e-280 add nothing to any sum here.
+        np.putmask(out, np.abs(out) < TINY, 0.0)
     return out
 
 
