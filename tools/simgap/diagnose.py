@@ -486,6 +486,7 @@ def diagnose(train, withheld=None, model=None):
         "coverage": cov,
         "implausible": implausible,
         "pruned": [{"effect": n, "axis": AXES[a], "z": z} for n, a, z in pruned],
+        "joint": _joint_json(g),
         "not_confirmed": not_confirmed,
         "not_identifiable": not_ident,
         "told_apart": apart,
@@ -508,6 +509,20 @@ def diagnose(train, withheld=None, model=None):
                                                     "withheld" if withheld is not None else "training")
     result["model"] = model_json
     return result, extras
+
+
+def _joint_json(g):
+    """Masking pairs the greedy search added together (Greedy._joint) and still in the model."""
+    out = {}
+    for j in g.joint:
+        have = {n for n, _ in g.state[j["axis"]]}
+        if not set(j["effects"]) <= have:
+            continue
+        e = out.setdefault(tuple(j["effects"]), {"effects": j["effects"], "axes": [], "z": [], "z_wander": []})
+        e["axes"].append(AXES[j["axis"]])
+        e["z"].append(round(j["z"], 2))
+        e["z_wander"].append(round(j["z_wander"], 2))
+    return list(out.values())
 
 
 def _split_json(split, g, used):

@@ -84,6 +84,10 @@ def text(res):
                      f"scale (z {c['z_chi2']:.2f} at chi-squared, {c['z_train']:.2f} calibrated); "
                      f"p on half A {c['p_withheld_a']:.2g}, Fisher-combined p {c['p_combined']:.2g} "
                      f"(needs z >= {c['z_pass']:.2f})")
+    for j in res.get("joint", []):
+        L.append(f"judged together: {' + '.join(j['effects'])} on {','.join(j['axes'])} - each alone "
+                 f"predicts the held-out segments worse (held-out z {', '.join(map(str, j['z']))}; "
+                 f"against the wandering bias z {', '.join(map(str, j['z_wander']))})")
     for c in res.get("not_confirmed", []):
         if c.get("reason"):
             L.append(f"not confirmed: {c['effect']} on {c['axis']} ({c['withheld_rms_without']:.4g} -> "
