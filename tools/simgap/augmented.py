@@ -173,11 +173,11 @@ def _effect_value(model, e, log, p, axis, T, dT, ref):
     if n == "hysteresis":
         tau = e["lag_tau_s"]
         q = e.get("input") == "destaired"
-        u = F.lowpass(p, tau, q) if tau else (F.unstair(p, 0.0) if q else T)
+        u = F.temperature(p, tau, q, reading=T)
         return sum(ck * (F.play(p, w, tau, q) - u) for ck, w in zip(c, e["widths_c"]))
     if n == "temp_rate":
         q = e["input"] == "destaired"
-        u = F.unstair(p, 0.0) if q else T
+        u = F.temperature(p, 0.0, q, reading=T)
         D1 = u - F.lowpass(p, e["tau_s"][0], q)
         D2 = u - F.lowpass(p, e["tau_s"][1], q)
         cols = {"D1": D1, "D1_dT": D1 * dT, "D2": D2, "D2_dT": D2 * dT, "D1_sq": D1 * D1,

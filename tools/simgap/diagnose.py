@@ -10,7 +10,7 @@ from scipy import stats
 
 from . import augmented, coverage, noise, plausible, prep, uncertainty
 from .effects import CATALOGUE
-from .fit import Problem
+from .fit import Problem, demean_runs
 from .logio import AXES
 from .select import STEP_NEEDS, Greedy, design_gaps, wander_needs
 from .where import localise
@@ -96,9 +96,7 @@ def _withheld_confirm(prob, g, withheld, split):
         m = g.noise_for(a, blocks)["model"]
         r = prob.full_residual(pw, a, blocks, model=m)[ia]
         if separate:
-            r = r.copy()
-            for k in np.unique(run):
-                r[run == k] -= np.mean(r[run == k])
+            r = demean_runs(r, run)
         # Half B's rows between two blocks of A are a gap, bridged or restarted by the rule
         # every log's gaps follow (noise.restarts: restarted where the walk moves by more
         # than the white sigma over it, or the Gauss-Markov term forgets).
@@ -250,10 +248,7 @@ def diagnose(train, withheld=None, model=None):
             r = r[rows]
             if not dm[a]:
                 return r
-            r = r.copy()
-            for run in np.unique(wrun):
-                r[wrun == run] -= np.mean(r[wrun == run])
-            return r
+            return demean_runs(r, wrun)
 
         extras["scored"] = scored
         # The withheld log may veto, never add: an effect that makes the covered withheld

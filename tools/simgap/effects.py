@@ -141,7 +141,7 @@ class Hysteresis(Effect):
     def columns(self, ctx, p, shape, axis):
         w, tau = shape if isinstance(shape, tuple) else (shape, 0.0)
         q = ctx.quantised
-        T = F.lowpass(p, tau, q) if tau else (F.unstair(p, 0.0) if q else p.log.temp)
+        T = F.temperature(p, tau, q)
         return np.column_stack([F.play(p, v, tau, q) - T for v in (w, 2 * w, 4 * w)])
 
     def continuous(self, ctx, shape):
@@ -177,7 +177,7 @@ class TempRate(Effect):
         # On a staircase reading a short filter mostly sees the steps, not the lag; take the
         # derivative of the staircase-free estimate so the two effects stay apart.
         q = ctx.quantised
-        T = F.unstair(p, 0.0) if q else p.log.temp
+        T = F.temperature(p, 0.0, q)
         t1, t2 = self.time_constants(shape)
         D1 = T - F.lowpass(p, t1, q)
         D2 = T - F.lowpass(p, t2, q)

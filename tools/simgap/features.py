@@ -71,6 +71,17 @@ def _restart_ranges(restart):
     return zip(starts, list(starts[1:]) + [len(restart)])
 
 
+def temperature(p, tau=0.0, destair=False, reading=None):
+    """The temperature an effect acts on: the reading (or `reading` given), or its
+    staircase-free estimate (destair, on a coarse reading: unstair), low-passed with time
+    constant tau (s) when tau > 0 (a lagging internal temperature)."""
+    if tau:
+        return lowpass(p, tau, destair)
+    if destair:
+        return unstair(p, 0.0)
+    return p.log.temp if reading is None else reading
+
+
 def lowpass(p, tau, destair=False):
     """First-order low pass of the temperature reading with time constant tau (s), exact for
     any sample spacing. destair=True filters the staircase-free estimate instead (unstair)."""
@@ -78,7 +89,7 @@ def lowpass(p, tau, destair=False):
     if key in p.cache:
         return p.cache[key]
     t = p.log.t
-    x = unstair(p, 0.0) if destair else p.log.temp
+    x = temperature(p, 0.0, destair)
     y = np.empty_like(x)
     for a, b in _restart_ranges(p.restart):
         dt = np.diff(t[a:b])
@@ -105,7 +116,7 @@ def play(p, width, tau=0.0, destair=False):
     key = ("play", width, tau, destair)
     if key in p.cache:
         return p.cache[key]
-    x = lowpass(p, tau, destair) if tau else (unstair(p, 0.0) if destair else p.log.temp)
+    x = temperature(p, tau, destair)
     y = np.empty_like(x)
     h = width / 2
     for a, b in _restart_ranges(p.restart):

@@ -476,6 +476,11 @@ def _solve(G, b, rcond=RCOND):
     return np.linalg.lstsq(G, b, rcond=RCOND)[0]
 
 
+def demean_runs(r, runs):
+    """A copy of r less each run's own mean (every row unseen by the fit: _startup_correct)."""
+    return _startup_correct(r, runs, np.ones(len(r), bool))
+
+
 def _startup_correct(r, runs, unseen):
     """Give each run the fit never saw its own constant (the mean of its residual): that is
     what 'the offset differs from run to run' predicts - one unknown number per power-on,
