@@ -111,6 +111,7 @@ class Greedy:
         self.borrowed = set()                   # (effect, axis) taken in as established elsewhere
         self.stepped = []                       # effects an unlogged step explains as well
         self.joint = []                         # masking pairs added together (_joint)
+        self._joint_refused = {}                # (pair, axis) -> state length the wander refused it at
         self.confirm = None                     # half A of the withheld log (diagnose sets it)
         self.confirmations = []                 # every use of it (_confirm)
         self._consulted = {}    # (effect, axis) -> half A's p and its two parts (_consult)
@@ -570,10 +571,11 @@ class Greedy:
                                 for a in range(3)}
                     trials = {n: {a: self._try(n, a) for a in ax} for n, ax in pool.items() if ax}
             self._ncand = max(1, sum(len(tr) for tr in trials.values()))
+            nstats = {}                 # axis -> (sd, tau) of the saturated model's innovations
             for a in range(3):
                 if not any(a in tr for tr in trials.values()):
                     continue
-                sd, tau = self._noise_stats(trials, a)
+                sd, tau = nstats[a] = self._noise_stats(trials, a)
                 for n, tr in trials.items():
                     if a in tr:
                         self._judge(tr[a], a, tau, sd)
@@ -588,7 +590,7 @@ class Greedy:
             step = {"trials": trials, "scores": scores, "chosen": None}
             self.steps.append(step)
             if not sig:
-                if self._joint(trials, rejected):
+                if self._joint(trials, rejected, nstats):
                     continue
                 break
             win = max(sig, key=lambda n: scores[n])
@@ -641,7 +643,7 @@ class Greedy:
                     self.record.setdefault((n, a), v)
         return chosen
 
-    def _joint(self, trials, rejected):
+    def _joint(self, trials, rejected, nstats):
         """Pairs that mask each other (JOINT), tried together once the greedy search finds no
         single effect: a power-on's constant and the warm-up after it each predict the
         held-out segments worse alone - a run's constant fitted on its settled half misses
@@ -651,14 +653,18 @@ class Greedy:
         is judged like one effect (the held-out gain, judged as a per-run effect is) and then
         by the same likelihood-ratio test against the wandering bias, with both effects'
         free parameters as degrees of freedom and the warm-up's shape grid as the Bonferroni
-        factor, and half A of the withheld log where that test needs it. Returns whether a
-        pair was added (the greedy search then goes on)."""
+        factor, and half A of the withheld log where that test needs it. A pair the wander
+        check refuses is not tried again on that axis until its state changes (the singles'
+        own refusals, `rejected` from run(), keep the pair out the same way). nstats: axis ->
+        (sd, tau) of this step's saturated model (run()). Returns whether a pair was added
+        (the greedy search then goes on)."""
         added = False
         for pair in JOINT:
             for a in range(3):
                 have = {n for n, _ in self.state[a]}
-                if any(n in have or a not in trials.get(n, {}) or rejected.get((n, a)) == len(
-                        self.state[a]) for n in pair):
+                if self._joint_refused.get((pair, a)) == len(self.state[a]) or any(
+                        n in have or a not in trials.get(n, {}) or rejected.get((n, a)) == len(
+                            self.state[a]) for n in pair):
                     continue
                 tr = [trials[n][a] for n in pair]
                 blocks = self.state[a] + [(v["name"], v["shape"]) for v in tr]
@@ -666,14 +672,13 @@ class Greedy:
                      "shape": tr[-1]["shape"],
                      "res": self.prob.evaluate(a, blocks, withheld=False),
                      "df": sum(v["df"] for v in tr), "grid": int(np.prod([v["grid"] for v in tr]))}
-                sd, tau = self._noise_stats(trials, a)
+                sd, tau = nstats[a]
                 self._judge(v, a, tau, sd)
                 if not v["significant"]:
                     continue
                 z, gain, _ = self._lr_z(a, self.state[a], blocks, v["df"], v["grid"])
                 if z < Z_WANDER:
-                    for n in pair:
-                        rejected[(n, a)] = len(self.state[a]) + 1
+                    self._joint_refused[(pair, a)] = len(self.state[a])
                     continue
                 for t in tr:
                     rec = dict(v, name=t["name"], shape=t["shape"], z_wander=z, loglik_gain=gain,
