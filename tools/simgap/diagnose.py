@@ -51,12 +51,11 @@ def _thin(log):
     return log.subset(slice(None, None, k)), k
 
 
-def _withheld_split(prob, train, withheld):
-    """Half A (confirms) and half B (scores) of the withheld log's covered rows: SPLIT_BLOCKS
-    contiguous blocks alternating A, B, A, ... None when the withheld log lies outside the
-    training coverage (it then decides nothing)."""
+def _withheld_split(prob, withheld, inside):
+    """Half A (confirms) and half B (scores) of the withheld log's covered rows (inside:
+    coverage.covered): SPLIT_BLOCKS contiguous blocks alternating A, B, A, ... None when the
+    withheld log lies outside the training coverage (it then decides nothing)."""
     pw = prob.withheld
-    inside = coverage.covered(train, withheld)
     if float(np.mean(inside)) < COVERED_MIN:
         return None
     idx = np.flatnonzero(pw.mask & inside)
@@ -143,7 +142,8 @@ def diagnose(train, withheld=None, model=None):
 
     # 2. Choose effects under the noise model on held-out segments of the training log.
     g = Greedy(prob, sigma_t)
-    split = _withheld_split(prob, train, withheld) if withheld is not None else None
+    inside = coverage.covered(train, withheld) if withheld is not None else None
+    split = _withheld_split(prob, withheld, inside) if withheld is not None else None
     if split is not None:
         # An effect stage B refuses only for the wander's Bartlett scale goes to half A of the
         # withheld log (Greedy._confirm); half B alone then scores whatever A confirmed.
@@ -189,7 +189,9 @@ def diagnose(train, withheld=None, model=None):
                 order.append(n)
     verdict = list(order)
 
-    # 4. Coverage of the withheld log, then its one scoring.
+    # 4. Coverage of the withheld log, then its one scoring (on half B alone when half A
+    #    confirmed an effect: split is None when the withheld log lies outside the coverage).
+    on_b = split is not None and any(c["confirmed"] for c in g.confirmations)
     cov = {"train": coverage.describe(train)}
     extras = {"prob": prob, "base_train": base_t, "greedy": g}
     tob_shift = {}
@@ -197,7 +199,6 @@ def diagnose(train, withheld=None, model=None):
     if withheld is not None:
         pw = prob.withheld
         cov["withheld"] = coverage.describe(withheld)
-        inside = coverage.covered(train, withheld)
         frac = float(np.mean(inside))
         cov["withheld_covered_fraction"] = frac
         cov["differences"] = coverage.differences(cov["train"], cov["withheld"])
@@ -215,13 +216,12 @@ def diagnose(train, withheld=None, model=None):
                 "it is scored on the covered rows only and no effect rests on it",
                 covered_fraction=frac))
         rows = pw.mask & inside
-        if split is not None and any(c["confirmed"] for c in g.confirmations):
+        if on_b:
             # Half A confirmed an effect: the final residual, the shrinks and the veto come
             # from half B alone, which chose nothing.
             rows = rows & split["b"]
         if rows.sum() < 50:
             rows = pw.mask.copy()   # nothing covered: report on all rows, flagged below
-        on_b = split is not None and any(c["confirmed"] for c in g.confirmations)
         source = f"withheld log {withheld.name}" + (
             f" ({int(rows.sum())} covered rows)" if outside else "") + (
             f" (half B: {int(rows.sum())} rows in {SPLIT_BLOCKS // 2} blocks; half A confirmed "
@@ -488,7 +488,7 @@ def diagnose(train, withheld=None, model=None):
         "untried": [{"name": n, "reason": r} for n, r in g.untried.items()],
         "waterfall": waterfall,
         "withheld_source": source,
-        "withheld_split": _split_json(split, g, withheld is not None and not outside),
+        "withheld_split": _split_json(split, g, on_b),
         "selected_on": f"held-out segments of the training log ({prob.nfold} contiguous blocks)",
         "unit": train.unit,
         "sim": "given model" if model is not None else "fitted on the training log",
@@ -520,12 +520,11 @@ def _joint_json(g):
     return list(out.values())
 
 
-def _split_json(split, g, used):
+def _split_json(split, g, on_b):
     """The withheld log's halves: A confirms (Greedy._confirm), B scores when A confirmed
-    anything, else the whole covered withheld log scores."""
+    anything (on_b), else the whole covered withheld log scores."""
     if split is None:
         return None
-    on_b = used and any(c["confirmed"] for c in g.confirmations)
     return {"block_rows": split["block_rows"], "blocks": SPLIT_BLOCKS,
             "rows_a": int(split["a"].sum()), "rows_b": int(split["b"].sum()),
             "scored_on": "half B" if on_b else "whole",
