@@ -14,10 +14,11 @@ def test_halves_alternate_cover_the_temperature_range_and_share_no_row():
     s = seeds("simgap_confirm/split", 1)[0]
     tr, wh = A.make(seed=s), A.make(seed=s + 1)
     prob = Problem(tr, wh)
-    sp = D._withheld_split(prob, tr, wh)
+    inside = D.coverage.covered(tr, wh)
+    sp = D._withheld_split(prob, wh, inside)
     a, b = sp["a"], sp["b"]
     assert not (a & b).any()
-    covered = prob.withheld.mask & D.coverage.covered(tr, wh)
+    covered = prob.withheld.mask & inside
     assert np.array_equal(a | b, covered)
     assert abs(int(a.sum()) - int(b.sum())) <= sp["block_rows"]
     # 20 contiguous blocks alternating A, B: 10 runs of consecutive covered rows in each half
