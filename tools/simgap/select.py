@@ -643,7 +643,7 @@ class Greedy:
                 if self._joint(trials, rejected, nstats):
                     continue
                 break
-            win = self._told_apart(max(sig, key=lambda n: scores[n]), sig, trials, step)
+            win = max(sig, key=lambda n: scores[n])
             added = False
             established = any(w["significant"] for w in trials[win].values())
             for a, v in trials[win].items():
@@ -695,41 +695,6 @@ class Greedy:
                 for a, v in tr.items():
                     self.record.setdefault((n, a), v)
         return chosen
-
-    def _told_apart(self, win, sig, trials, step):
-        """Between two confusable effects (NEEDS: a thermal lag and a hysteresis both split
-        heating from cooling) significant on the same axes at one step, the held-out score
-        favours the one with fewer columns (each held-out segment is predicted with every
-        column's estimation error; the lag family has 7 columns, the loop 3), not the one the
-        data favour. Where the rival is significant on every axis the winner is, they are
-        compared there as swap() compares them: by the profile likelihood (the noise model
-        re-estimated with each in) less 0.5 ln n per column, each at its continuous
-        parameter's maximum, and the rival takes the step if it wins on every one of those
-        axes. Measured at wander `lag_rw` seed 113: a lag (tau 71 s) on z, held-out score
-        hysteresis 18.8 against the lag's 15.2, named hysteresis at 1.52x the floor. (A
-        rival significant on fewer axes keeps its turn for a later step: with the comparison
-        on the shared axes alone, the full set's 1 degC reading + hysteresis pair at seed 2
-        took a lag on x for a loop on three axes and ended at 1.55x.)"""
-        for rival in sorted(sig):
-            if rival == win or BY_NAME[rival].per_run or frozenset({win, rival}) not in NEEDS:
-                continue
-            common = [a for a, v in trials[win].items() if v["significant"]]
-            if not common or not all(a in trials[rival] and trials[rival][a]["significant"]
-                                     for a in common):
-                continue
-            better = 0
-            for a in common:
-                n = len(self.cur[a]["ins"])
-                b = {}
-                for name in (win, rival):
-                    sh = self._refine(a, self.state[a], name, trials[name][a]["shape"])
-                    b[name] = self._profile_bic(a, self.state[a], name, sh, n)
-                better += b[rival] > b[win]
-            step.setdefault("profile_choice", []).append(
-                {"winner": win, "rival": rival, "axes": common, "rival_better_on": int(better)})
-            if better == len(common):
-                return rival
-        return win
 
     def _joint(self, trials, rejected, nstats):
         """Pairs that mask each other (JOINT), tried together once the greedy search finds no
