@@ -81,6 +81,15 @@ def _same_shape(a, b):
     return float(a) == float(b)
 
 
+def _drop_simpler(trials):
+    """Forget the second-chance shapes (trial["simpler"], from Greedy._try) once a step is
+    decided: the trials stay in Greedy.steps and .record for the whole diagnosis, and each
+    simpler shape holds a second set of residual arrays as long as the log."""
+    for tr in trials.values():
+        for v in tr.values():
+            v.pop("simpler", None)
+
+
 def _grid_peak(L):
     """Maximum over a grid (rows) of each column of L: the parabola's peak through the best
     point and its neighbours where the best point is inside the grid (then the peak lies
@@ -450,16 +459,22 @@ class Greedy:
             self._judge(alt, axis, tau, sd)
         if v["significant"] and not alt["significant"]:
             return v
-        shape = self._refine(axis, self.state[axis], name, alt["shape"])
-        if not _same_shape(shape, alt["shape"]):
-            alt.update(shape=shape, res=self.prob.evaluate(axis, self.state[axis] + [(name, shape)],
-                                                           withheld=False))
+        self._refined(alt, axis, name)
         z2, gain2, _ = self._wander_check(axis, self.state[axis], self.state[axis] + [(name, alt["shape"])],
                                           name)
         if z2 < Z_WANDER:
             return v
         alt.update(z_wander=z2, loglik_gain=gain2)
         return alt
+
+    def _refined(self, v, axis, name):
+        """The trial v with its shape refined over the axis's current state (_refine); its
+        in-sample residuals evaluated again only if the shape moved. Returns v, updated."""
+        shape = self._refine(axis, self.state[axis], name, v["shape"])
+        if not _same_shape(shape, v["shape"]):
+            v.update(shape=shape, res=self.prob.evaluate(axis, self.state[axis] + [(name, shape)],
+                                                         withheld=False))
+        return v
 
     def _localised(self, name, i0, i1):
         """Does one held-out segment hold most of the evidence for the effect? True when more
@@ -640,6 +655,7 @@ class Greedy:
             step = {"trials": trials, "scores": scores, "chosen": None}
             self.steps.append(step)
             if not sig:
+                _drop_simpler(trials)
                 if self._joint(trials, rejected, nstats):
                     continue
                 break
@@ -658,10 +674,7 @@ class Greedy:
                 take = v["significant"] or established
                 if not take:
                     continue
-                shape = self._refine(a, self.state[a], win, v["shape"])
-                if not _same_shape(shape, v["shape"]):
-                    v.update(shape=shape, res=self.prob.evaluate(a, self.state[a] + [(win, shape)],
-                                                                 withheld=False))
+                self._refined(v, a, win)
                 with_ = self.state[a] + [(win, v["shape"])]
                 z, gain, i0 = self._wander_check(a, self.state[a], with_, win)
                 v.update(z_wander=z, loglik_gain=gain)
@@ -686,6 +699,7 @@ class Greedy:
                 step["chosen"] = win
                 if win not in chosen:
                     chosen.append(win)
+            _drop_simpler(trials)
         # Effects (or axes) never added: their trial against the final model.
         for n, tr in self.steps[-1]["trials"].items():
             for a, v in tr.items():
