@@ -36,9 +36,10 @@ for _name in BLIND:
         os.environ[_name] = str(random.SystemRandom().randint(1, 100000))
 
 
-def seed(name, k=0):
-    """A seed in [0, 2**31) for the named use, from the run's seed."""
-    return zlib.crc32(("%d/%s/%d" % (RUN, name, k)).encode()) & 0x7FFFFFFF
+def seed(name, k=0, run=None):
+    """A seed in [0, 2**31) for the named use, from the run's seed (or from the run seed
+    `run`, to repeat one use of a past run's data: a regression kept at the seed it failed)."""
+    return zlib.crc32(("%d/%s/%d" % (RUN if run is None else run, name, k)).encode()) & 0x7FFFFFFF
 
 
 def seeds(name, n):
