@@ -9,7 +9,7 @@ import numpy as np
 from scipy import stats
 
 from . import augmented, coverage, noise, plausible, prep, uncertainty
-from .effects import CATALOGUE
+from .effects import BY_NAME, CATALOGUE
 from .fit import Problem, demean_runs
 from .logio import AXES
 from .select import STEP_NEEDS, Greedy, design_gaps, wander_needs
@@ -26,6 +26,7 @@ SPLIT_BLOCKS = 20       # the withheld log's covered rows in this many contiguou
                         # B alternating: each half holds 10 blocks spread over the whole log,
                         # so both see its temperature programme at 1/20 of its length
 MIN_CONFIRM_ROWS = 50   # half A shorter than this confirms nothing
+STEP_ONSETS = 48        # onsets of the unlogged step tried on half A (_withheld_confirm.step_rival)
 
 
 def _rms(v):
@@ -113,6 +114,55 @@ def _withheld_confirm(prob, g, withheld, split):
             return None
         return float(stats.norm.sf(float(np.sum(d)) / np.sqrt(var)))
 
+    def step_rival(a, effect_model, step_model):
+        """One-sided p that the effect (effect_model: the others plus it, fitted on training
+        without the step) predicts half A better than the unlogged step it lost to on the
+        training log (step_model: the others plus the step, its time constant and size
+        frozen from training) moved to the time that suits half A best. The step's cause
+        happens at its own time in each log (it is not tied to the power-on, or it would be
+        a warm-up), with the same size and settling: so its best onset on A - anywhere in
+        the middle of the log, as the training grid allows, or wholly outside it - is the
+        strongest form of that explanation, and the effect, frozen, must beat it. The onset
+        is chosen on A's own rows, which favours the step: the test errs towards keeping the
+        effect out. Per-row log-likelihood differences as in confirm (HAC variance)."""
+        if len(ia) < MIN_CONFIRM_ROWS:
+            return None
+        name, shape = step_model[-1]
+        tau = shape[1]
+        col = BY_NAME[name].columns
+        size = float(prob.coefficients(a, step_model)[1][-1][2][0])
+        m = g.noise_for(a, step_model)["model"]
+        r0 = prob.full_residual(pw, a, step_model, model=m) + size * col(prob.ctx, pw, shape, a)[:, 0]
+        starts = noise.restarts(t, prob.ctx.dt, seg, m)
+
+        def rows(r):
+            r = r[ia]
+            if separate:
+                r = demean_runs(r, run)
+            _, s2, u = noise.concentrated_loglik(r, m, starts)
+            return -0.5 * (np.log(2 * np.pi * s2) + u * u / s2)
+
+        # Onsets as the training grid allows them (effects.UnloggedStep: clear of the log's
+        # ends, where a step would be a warm-up or nothing), and the step wholly before
+        # the log (a constant) or after it (nothing).
+        t_lo, t_hi = pw.log.t[0], pw.log.t[-1]
+        span = t_hi - t_lo
+        edge = BY_NAME[name].EDGE
+        onsets = np.r_[t_lo - 50.0 * tau, np.linspace(t_lo + edge * span, t_hi - edge * span, STEP_ONSETS),
+                       t_hi + 1.0]
+        best = None
+        for t1 in onsets:
+            ll = rows(r0 - size * col(prob.ctx, pw, (float(t1), tau), a)[:, 0])
+            if best is None or ll.sum() > best.sum():
+                best = ll
+        d = ll_rows(a, effect_model) - best
+        dc = d - np.mean(d)
+        var = float(np.dot(dc, dc)) * noise.autocorr_time(dc)
+        if not var > 0:
+            return None
+        return float(stats.norm.sf(float(np.sum(d)) / np.sqrt(var)))
+
+    confirm.step_rival = step_rival
     return confirm
 
 
@@ -191,7 +241,8 @@ def diagnose(train, withheld=None, model=None):
 
     # 4. Coverage of the withheld log, then its one scoring (on half B alone when half A
     #    confirmed an effect: split is None when the withheld log lies outside the coverage).
-    on_b = split is not None and any(c["confirmed"] for c in g.confirmations)
+    on_b = split is not None and (any(c["confirmed"] for c in g.confirmations)
+                                  or any(c["kept"] for c in g.step_rivals))
     cov = {"train": coverage.describe(train)}
     extras = {"prob": prob, "base_train": base_t, "greedy": g}
     tob_shift = {}
@@ -528,7 +579,8 @@ def _split_json(split, g, on_b):
     return {"block_rows": split["block_rows"], "blocks": SPLIT_BLOCKS,
             "rows_a": int(split["a"].sum()), "rows_b": int(split["b"].sum()),
             "scored_on": "half B" if on_b else "whole",
-            "confirmations": [dict(c, axis=AXES[c["axis"]]) for c in g.confirmations]}
+            "confirmations": [dict(c, axis=AXES[c["axis"]]) for c in g.confirmations],
+            "step_rivals": [dict(c, axis=AXES[c["axis"]]) for c in g.step_rivals]}
 
 
 def _effect_records(prob, g, verdict, use_withheld, extras):

@@ -74,7 +74,7 @@ def text(res):
         f"floor, {_fmt_ratio(fin.get('ratio_to_white_floor', {}).get(a))} the white floor)"
         for a in fin["withheld_rms"]) + f" {u}")
     sp = res.get("withheld_split")
-    if sp and sp["confirmations"]:
+    if sp and (sp["confirmations"] or sp.get("step_rivals")):
         L.append(f"withheld log split in {sp['blocks']} alternating blocks of {sp['block_rows']} rows: "
                  f"half A ({sp['rows_a']} rows) confirms, half B ({sp['rows_b']} rows) scores "
                  f"{'the figures above' if sp['scored_on'] == 'half B' else 'nothing (A confirmed nothing; the whole log scored)'}")
@@ -84,6 +84,11 @@ def text(res):
                      f"scale (z {c['z_chi2']:.2f} at chi-squared, {c['z_train']:.2f} calibrated); "
                      f"p on half A {c['p_withheld_a']:.2g}, Fisher-combined p {c['p_combined']:.2g} "
                      f"(needs z >= {c['z_pass']:.2f})")
+    for c in (sp or {}).get("step_rivals", []):
+        L.append(f"{c['effect']} on {c['axis']}: an offset step at an unlogged time explains it as well on "
+                 f"the training log (z {c['z_train']:.2f}); on withheld half A, against that step moved to "
+                 f"its best time there, z {c['z_withheld_a']:.2f} (needs {c['z_pass']:.2f}): "
+                 + ("kept" if c["kept"] else "not kept"))
     for j in res.get("joint", []):
         L.append(f"judged together: {' + '.join(j['effects'])} on {','.join(j['axes'])} - each alone "
                  f"predicts the held-out segments worse (held-out z {', '.join(map(str, j['z']))}; "
