@@ -95,7 +95,8 @@ def test_play_on_a_lagged_temperature_matches_hand_filters():
 # z 3.4 < 4 at seed 2, the lag's 2.1 after the loop at seed 3.
 @pytest.mark.xfail(strict=False, reason="issue 22: the lag + hysteresis pair not both named (the noise "
                    "model takes the lagged loop's slow part), misses at TEMPCOMP_SEED=2, 3, 11, 15 "
-                   "(4/20, measured 2026-11-28 on combo2 + the plateau fix)")
+                   "(4/20, measured 2026-11-28 on combo2 + the plateau fix); 15 passes since the "
+                   "lag/loop rule of 2026-11-29, 2, 3 and 11 still miss")
 def test_hysteresis_on_the_lagged_temperature_found_with_its_lag():
     # The package's hysteresis acts on the structure's temperature, which trails the reading
     # through a first-order lag; the offset also follows the lagged temperature.
