@@ -92,9 +92,9 @@ def _withheld_confirm(prob, g, withheld, split):
     t = withheld.t[ia]
     separate = "power_on_s" not in withheld.meta
 
-    def ll_rows(a, blocks):
-        m = g.noise_for(a, blocks)["model"]
-        r = prob.full_residual(pw, a, blocks, model=m)[ia]
+    def row_ll(r, m):
+        """Per-row predictive log-likelihood on A's rows of a withheld residual r under m."""
+        r = r[ia]
         if separate:
             r = demean_runs(r, run)
         # Half B's rows between two blocks of A are a gap, bridged or restarted by the rule
@@ -104,15 +104,22 @@ def _withheld_confirm(prob, g, withheld, split):
         _, s2, u = noise.concentrated_loglik(r, m, starts)
         return -0.5 * (np.log(2 * np.pi * s2) + u * u / s2)
 
-    def confirm(a, without, with_):
-        if len(ia) < MIN_CONFIRM_ROWS:
-            return None
-        d = ll_rows(a, with_) - ll_rows(a, without)
+    def ll_rows(a, blocks):
+        m = g.noise_for(a, blocks)["model"]
+        return row_ll(prob.full_residual(pw, a, blocks, model=m), m)
+
+    def one_sided_p(d):
+        """p of sum(d) > 0, d the per-row log-likelihood differences (HAC variance)."""
         dc = d - np.mean(d)
         var = float(np.dot(dc, dc)) * noise.autocorr_time(dc)
         if not var > 0:
             return None
         return float(stats.norm.sf(float(np.sum(d)) / np.sqrt(var)))
+
+    def confirm(a, without, with_):
+        if len(ia) < MIN_CONFIRM_ROWS:
+            return None
+        return one_sided_p(ll_rows(a, with_) - ll_rows(a, without))
 
     def step_rival(a, effect_model, step_model):
         """One-sided p that the effect (effect_model: the others plus it, fitted on training
@@ -133,14 +140,6 @@ def _withheld_confirm(prob, g, withheld, split):
         size = float(prob.coefficients(a, step_model)[1][-1][2][0])
         m = g.noise_for(a, step_model)["model"]
         r0 = prob.full_residual(pw, a, step_model, model=m) + size * col(prob.ctx, pw, shape, a)[:, 0]
-        starts = noise.restarts(t, prob.ctx.dt, seg, m)
-
-        def rows(r):
-            r = r[ia]
-            if separate:
-                r = demean_runs(r, run)
-            _, s2, u = noise.concentrated_loglik(r, m, starts)
-            return -0.5 * (np.log(2 * np.pi * s2) + u * u / s2)
 
         # Onsets as the training grid allows them (effects.UnloggedStep: clear of the log's
         # ends, where a step would be a warm-up or nothing), and the step wholly before
@@ -152,18 +151,12 @@ def _withheld_confirm(prob, g, withheld, split):
                        t_hi + 1.0]
         best = None
         for t1 in onsets:
-            ll = rows(r0 - size * col(prob.ctx, pw, (float(t1), tau), a)[:, 0])
+            ll = row_ll(r0 - size * col(prob.ctx, pw, (float(t1), tau), a)[:, 0], m)
             if best is None or ll.sum() > best.sum():
                 best = ll
-        d = ll_rows(a, effect_model) - best
-        dc = d - np.mean(d)
-        var = float(np.dot(dc, dc)) * noise.autocorr_time(dc)
-        if not var > 0:
-            return None
-        return float(stats.norm.sf(float(np.sum(d)) / np.sqrt(var)))
+        return one_sided_p(ll_rows(a, effect_model) - best)
 
-    confirm.step_rival = step_rival
-    return confirm
+    return confirm, step_rival
 
 
 def diagnose(train, withheld=None, model=None):
@@ -197,7 +190,7 @@ def diagnose(train, withheld=None, model=None):
     if split is not None:
         # An effect stage B refuses only for the wander's Bartlett scale goes to half A of the
         # withheld log (Greedy._confirm); half B alone then scores whatever A confirmed.
-        g.confirm = _withheld_confirm(prob, g, withheld, split)
+        g.confirm, g.step_rival = _withheld_confirm(prob, g, withheld, split)
     g.run()
     g.refine()
     g.swap()

@@ -126,6 +126,7 @@ class Greedy:
         self.joint = []                         # masking pairs added together (_joint)
         self._joint_refused = {}                # (pair, axis) -> state length the wander refused it at
         self.confirm = None                     # half A of the withheld log (diagnose sets it)
+        self.step_rival = None                  # half A against a moved unlogged step (same)
         self.confirmations = []                 # every use of it (_confirm)
         self._consulted = {}    # (effect, axis) -> half A's p and its two parts (_consult)
         self._ncand = 1
@@ -1062,10 +1063,9 @@ class Greedy:
         slope. A step whose cause repeats on the same schedule in every log is a clock-tied
         effect; no test on one withheld log tells it from one. Returns True when the
         effect stays."""
-        rival = getattr(self.confirm, "step_rival", None)
-        if rival is None:
+        if self.step_rival is None:
             return False
-        p = rival(a, others + [(name, shape)], others + [("unlogged_step", step_shape)])
+        p = self.step_rival(a, others + [(name, shape)], others + [("unlogged_step", step_shape)])
         if p is None:
             return False
         zr = float(stats.norm.isf(max(p, 1e-300)))
