@@ -104,6 +104,9 @@ def score(res, truth):
         "rms_ratio": rms_ratio,
         "rms_scored": bool(truth["in_catalogue"]),
         "rms_ok": (max(rms_ratio.values()) <= RMS_TARGET) if truth["in_catalogue"] else True,
+        # the unlogged-step rival's comparisons, for reading a miss (not scored)
+        "step_rivals": [{k: c.get(k) for k in ("effect", "axis", "z_train", "z_withheld_a", "kept", "step")}
+                        for c in ((res.get("withheld_split") or {}).get("step_rivals") or [])],
     }
 
 
