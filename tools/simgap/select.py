@@ -730,15 +730,21 @@ class Greedy:
         likelihood does not tell a first offset law from a loop (at TEMPCOMP_SEED=415318 the
         rule put a hysteresis before the offset slope it rode on), and on a 1 degC staircase
         the lag's derivative of the de-staired estimate out-fits the loop it stands for
-        (same seed: a loop named temp_rate on three axes). A rival significant on fewer axes
-        keeps its turn for a later step."""
+        (same seed: a loop named temp_rate on three axes). They are compared on the axes
+        where both are significant: at wander `lag_rw` seed 28 the loop was also significant
+        (held out) on an axis the lag was not, which then refused it against the wander, and
+        the lag (tau 128 s on x) had been named hysteresis at 4.0x the oracle floor."""
         if self.prob.ctx.quantised or win not in LAG_LOOP:
             return win
         rival = next(iter(LAG_LOOP - {win}))
         if rival not in sig:
             return win
-        common = [a for a, v in trials[win].items() if v["significant"]]
-        if not common or not all(a in trials[rival] and trials[rival][a]["significant"] for a in common):
+        # Compared where both are significant: there the winner would take the axis and the
+        # rival never get its turn. The winner's other axes stay its own (a lost step leaves
+        # it in the pool for them).
+        common = [a for a, v in trials[win].items()
+                  if v["significant"] and a in trials[rival] and trials[rival][a]["significant"]]
+        if not common:
             return win
         # The rival must win on every axis: the first axis it loses on decides (each axis
         # costs a noise search per model; on the bench's 1 M case the loop kept its step on
