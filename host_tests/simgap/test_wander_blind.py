@@ -27,8 +27,8 @@ EFFECT_SITUATIONS = [s for s in wander.SITUATIONS if s not in wandercheck.NO_VER
 # seeds, no miss). Every other check must pass at any seed.
 KNOWN_GAPS = {
     ("no_verdict", "off_catalogue"): "issue 22: a verdict on 1/80 seeds 1-80 on the code of"
-        " 2026-11-29, tenth round, and 1/120 seeds 1-120 on the ninth's (69: a drift on x - the generator's humidity step came 4287 s after the power-on"
-        " in the training log and 4366 s in the withheld one, the same schedule, which no test on"
+        " 2026-11-29, tenth round, and 1/120 seeds 1-120 on the ninth's (69: a drift on x - the"
+        " generator's humidity step came 4287 s after the power-on in the training log and 4366 s in the withheld one, the same schedule, which no test on"
         " one withheld log tells from a clock-tied effect); on older code also 9, 29, 30, 43, 65, 78"
         " (a temp_rate on one axis)",
     ("alone", "aging"): "issue 22: named alone on 79/80 seeds 1-80 on the code of 2026-11-29 (tenth"

@@ -719,21 +719,22 @@ class Greedy:
         """A thermal lag and a hysteresis (both split heating from cooling) significant on
         the same axes at one step: the held-out score favours the one with fewer columns
         (each held-out segment is predicted with every column's estimation error; the lag
-        family has up to 7 columns, the loop 3), not the one the data favour. Where the rival
-        is significant on every axis the winner is, they are compared there as swap()
-        compares them: by the profile likelihood (the noise model re-estimated with each in)
-        less 0.5 ln n per column, each at its continuous parameter's maximum, and the rival
-        takes the step if it wins on every one of those axes. Measured at wander `lag_rw`
+        family has up to 7 columns, the loop 3), not the one the data favour. On the axes
+        where both are significant they are compared as swap() compares them: by the
+        profile likelihood (the noise model re-estimated with each in) less 0.5 ln n per
+        column, each at its continuous parameter's maximum, and the rival takes the step if
+        it wins on every one of those axes. Measured at wander `lag_rw`
         seed 113: a lag (tau 71 s) on z, held-out score hysteresis 18.8 against the lag's
         15.2, named hysteresis at 1.52x the floor.
         Only this pair, and only on a reading that is not a staircase: the profile
         likelihood does not tell a first offset law from a loop (at TEMPCOMP_SEED=415318 the
         rule put a hysteresis before the offset slope it rode on), and on a 1 degC staircase
         the lag's derivative of the de-staired estimate out-fits the loop it stands for
-        (same seed: a loop named temp_rate on three axes). They are compared on the axes
-        where both are significant: at wander `lag_rw` seed 28 the loop was also significant
-        (held out) on an axis the lag was not, which then refused it against the wander, and
-        the lag (tau 128 s on x) had been named hysteresis at 4.0x the oracle floor."""
+        (same seed: a loop named temp_rate on three axes). Not only where the rival is
+        significant on every axis the winner is: at wander `lag_rw` seed 28 the loop was
+        also significant (held out) on an axis the lag was not, which then refused it
+        against the wander, and the lag (tau 128 s on x) had been named hysteresis at 4.0x
+        the oracle floor."""
         if self.prob.ctx.quantised or win not in LAG_LOOP:
             return win
         rival = next(iter(LAG_LOOP - {win}))
