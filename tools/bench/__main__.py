@@ -7,7 +7,7 @@ runs first, the others in name order. On-device figures come from the real inter
 may be busy. ``python -m tools bench [AREA ...]`` runs only the named areas.
 
 Every figure is also written to the record ``docs/bench.json`` (the areas run replace theirs,
-the others stay), and the figure tables of README.md and docs/ are rendered from that record
+the others stay; an area that raises keeps its previous figures), and the figure tables of README.md and docs/ are rendered from that record
 (tools/bench/figures.py), so what the pages show is one run's output; ``--no-write`` leaves
 both alone, ``--docs`` only renders the pages again from the record. A check a figure fails
 (a budget printed OVER, a heap-locked run that allocated) makes the exit status 1, after every
@@ -64,7 +64,8 @@ def main(argv=None):
             importlib.import_module("tools.bench." + name).bench(run.report)
         except Exception:  # noqa: BLE001 - the other areas still run; the exit status says it failed
             traceback.print_exc()
-            run.fail("%s: the area raised %s" % (name, traceback.format_exc().strip().splitlines()[-1]))
+            run.raise_(name, "%s: the area raised %s (its previous record kept)"
+                       % (name, traceback.format_exc().strip().splitlines()[-1]))
         run.end(name, time.time() - t0)
     if not a.no_write:
         rec = record.merge(record.load(), run, full=not a.areas)

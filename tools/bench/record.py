@@ -30,6 +30,7 @@ class Run:
         self.load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
         self.areas = {}
         self.failed = []
+        self.raised = set()     # areas that raised: their figures are partial, not a record
         self._area = None
 
     def start(self, area):
@@ -44,6 +45,11 @@ class Run:
 
     def fail(self, what):
         self.failed.append(what)
+
+    def raise_(self, area, what):
+        """The area raised: the run fails, and merge() keeps the area's previous record."""
+        self.raised.add(area)
+        self.fail(what)
 
     def report(self, name, value, unit, key=None, ok=None):
         """Print one figure and record it; ok=False marks a check it fails (budget, target)."""
@@ -79,10 +85,17 @@ def load(path=PATH):
 
 
 def merge(rec, run, full):
-    """The record with the run's areas replaced (a full run: the whole record)."""
+    """The record with the run's areas replaced (a full run: the whole record). An area that
+    raised keeps its previous entry (or has none): the rows it printed before raising are a
+    partial measurement, and a fault must not overwrite the last complete one."""
+    old = rec.get("areas", {})
     out = {"about": __doc__.split("\n\n")[0].replace("\n", " "), "full_run": rec.get("full_run"),
-           "areas": {} if full else dict(rec.get("areas", {}))}
-    out["areas"].update(run.areas)
+           "areas": {} if full else dict(old)}
+    for k, v in run.areas.items():
+        if k not in run.raised:
+            out["areas"][k] = v
+        elif k in old:
+            out["areas"][k] = old[k]
     if full:
         walls = [a.get("wall_s", 0) for a in run.areas.values()]
         out["full_run"] = {"date": run.date, "wall_min": round(sum(walls) / 60.0, 1), "load": _num(run.load),
