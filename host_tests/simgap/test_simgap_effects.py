@@ -88,23 +88,21 @@ def test_play_on_a_lagged_temperature_matches_hand_filters():
     assert np.allclose(F.play(p, 3.0), play(T, 3.0), atol=1e-12)
 
 
-# At the missed seeds the saturated model's loop and lag, each chosen alone (the loop on the
-# reading: the lagged shapes need a lag in the state), fit the lagged loop only in part; the noise
-# model fitted to the rest (a Gauss-Markov term at TEMPCOMP_SEED=2, 11, 15, a walk at 3) takes the
-# x effects (7 LSB of lag, 12 of hysteresis, on a 2 LSB floor) from stage A: the loop's held-out
-# z 3.4 < 4 at seed 2, the lag's 2.1 after the loop at seed 3.
-@pytest.mark.xfail(strict=False, reason="issue 22: the lag + hysteresis pair not both named (the noise "
-                   "model takes the lagged loop's slow part), misses at TEMPCOMP_SEED=2, 3, 11, 15 "
-                   "(4/20, measured 2026-11-28 on combo2 + the plateau fix); 15 passes since the "
-                   "lag/loop rule of 2026-11-29, 2, 3 and 11 still miss")
-def test_hysteresis_on_the_lagged_temperature_found_with_its_lag():
+# Until the lagged loop was tried as a pair (select.LAGGED) the saturated model's loop and lag,
+# each chosen alone (the loop on the reading: the lagged shapes need a lag in the state), fitted
+# the lagged loop only in part; the noise model fitted to the rest (a Gauss-Markov term at
+# TEMPCOMP_SEED=2, 11, 15, a walk at 3) took the x effects (7 LSB of lag, 12 of hysteresis, on a
+# 2 LSB floor) from stage A: no verdict at all at 2 and 11. Now the saturated model holds the
+# lagged loop and the pair's shapes are searched together: seeds 1-20 pass but 3, whose final
+# ratio is 1.10x (the loop's lag left at 58 s beside a 103 s lag; the truth 150 s for both).
+def _lagged_loop_case(run=None):
     # The package's hysteresis acts on the structure's temperature, which trails the reading
     # through a first-order lag; the offset also follows the lagged temperature.
     def effect(t, T, r):
         L = _lag(t, T, 150.0)
         return 2 * (T - L) + 4 * (play(L, 6.0) - L)
 
-    log = make(effect, n=N, sigma=2.0, seed=seed("simgap_effects/lagged_hysteresis"))
+    log = make(effect, n=N, sigma=2.0, seed=seed("simgap_effects/lagged_hysteresis", run=run))
     res, ex = diagnose(log)
     assert {"temp_rate", "hysteresis"} <= set(res["verdict"][:2]), res["verdict"]
     assert res["final"]["ratio_to_noise"]["x"] < 1.1
@@ -120,6 +118,19 @@ def test_hysteresis_on_the_lagged_temperature_found_with_its_lag():
     # (2.00 against 2.18: 8 %).
     n = len(g.cur[0]["cv"])
     assert lagged < reading_only - 3 * 2.0 / np.sqrt(2 * n)
+
+
+@pytest.mark.xfail(strict=False, reason="issue 22: the lag + hysteresis pair's final ratio over "
+                   "1.1x at TEMPCOMP_SEED=3 (1.10x; 1-20 else pass, measured 2026-11-29 on the "
+                   "lagged pair); before it, no verdict or one effect at 2, 3, 11, 15")
+def test_hysteresis_on_the_lagged_temperature_found_with_its_lag():
+    _lagged_loop_case()
+
+
+@pytest.mark.parametrize("run", [2, 11])
+def test_lagged_loop_found_where_the_noise_model_took_it(run):
+    # The runs whose lagged loop got no verdict at all before the pair (regression).
+    _lagged_loop_case(run)
 
 
 @pytest.mark.parametrize("name", sorted(CASES))
