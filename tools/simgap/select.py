@@ -624,19 +624,6 @@ class Greedy:
                 continue
             blocks = self._saturated(trials, a)
             info = self.noise_for(a, blocks)
-            for pair in LAGGED:
-                # The lagged loop is a structure the catalogue holds, though no single trial
-                # reaches it (its shapes need the lag in the state): the saturated model
-                # holds it too, or the noise model takes it (measured: a walk or a
-                # Gauss-Markov term fitted to the lagged-loop unit test's 7 + 12 LSB). Where
-                # the noise is white without it, it has nothing to take.
-                lag_name, loop_name = pair
-                if (not info["model"].is_white and lag_name not in dict(self.state[a])
-                        and all(a in trials.get(n, {}) for n in pair)):
-                    w0 = trials[loop_name][a]["shape"]
-                    w0 = w0[0] if isinstance(w0, tuple) else w0
-                    blocks = self._lagged_shapes(a, blocks, w0, pair)[0]
-                    info = self.noise_for(a, blocks)
             self.noise_info[a] = {"saturated": info}
             if info["model"].key() != self.prob.noise[a].key():
                 self.prob.set_noise(a, info["model"])
