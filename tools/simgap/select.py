@@ -68,7 +68,7 @@ JOINT = (("turn_on_bias", "drift"),)
 # (effects.Hysteresis: its lagged shapes exist only once a temp_rate is in): alone, the loop on
 # the reading misses its late reversals and the lag takes the loop's branch offsets, and a
 # noise model fitted beside them takes the rest (measured: the lagged-loop unit test, no
-# verdict at TEMPCOMP_SEED=2, 3, 11 - a 7 LSB lag and a 12 LSB loop on a 2 LSB floor). Their
+# verdict at TEMPCOMP_SEED=2 and 11 - a 7 LSB lag and a 12 LSB loop on a 2 LSB floor). Their
 # shapes are searched together (Greedy._lagged_pair).
 LAGGED = (("temp_rate", "hysteresis"),)
 
