@@ -669,7 +669,7 @@ class Greedy:
             self.steps.append(step)
             if not sig:
                 _drop_simpler(trials)
-                if self._joint(trials, rejected, nstats):
+                if self._joint(trials, rejected, nstats, pool):
                     continue
                 break
             win = self._told_apart(max(sig, key=lambda n: scores[n]), sig, trials, step)
@@ -770,7 +770,7 @@ class Greedy:
                 return win
         return rival
 
-    def _joint(self, trials, rejected, nstats):
+    def _joint(self, trials, rejected, nstats, pool):
         """Pairs that mask each other (JOINT), tried together once the greedy search finds no
         single effect: a power-on's constant and the warm-up after it each predict the
         held-out segments worse alone - a run's constant fitted on its settled half misses
@@ -800,19 +800,20 @@ class Greedy:
                      "shape": tr[-1]["shape"],
                      "res": self.prob.evaluate(a, blocks, withheld=False),
                      "df": sum(v["df"] for v in tr), "grid": int(np.prod([v["grid"] for v in tr]))}
-                added |= self._add_joint(a, pair, v, blocks, nstats)
+                added |= self._add_joint(a, pair, v, blocks, nstats, pool)
         for pair in LAGGED:
             for a in range(3):
                 if self._joint_refused.get((pair, a)) == len(self.state[a]):
                     continue
                 v = self._lagged_pair(a, pair, trials, rejected)
                 if v is not None:
-                    added |= self._add_joint(a, pair, v, v.pop("blocks"), nstats)
+                    added |= self._add_joint(a, pair, v, v.pop("blocks"), nstats, pool)
         return added
 
-    def _add_joint(self, a, pair, v, blocks, nstats):
+    def _add_joint(self, a, pair, v, blocks, nstats, pool):
         """Judge the pair's trial v (blocks: the whole state it proposes) as _joint says, and
-        take it in where it passes. Returns whether it did."""
+        take it in where it passes (its effects then leave the axis's pool of candidates, as
+        run() does for one effect). Returns whether it did."""
         sd, tau = nstats[a]
         self._judge(v, a, tau, sd)
         if not v["significant"]:
@@ -822,6 +823,9 @@ class Greedy:
             self._joint_refused[(pair, a)] = len(self.state[a])
             return False
         self.state[a] = list(blocks)
+        for n in pair:
+            if a in pool.get(n, []):
+                pool[n].remove(a)
         for n, shape in blocks:
             if n in pair:
                 self.record[(n, a)] = dict(v, name=n, shape=shape, z_wander=z, loglik_gain=gain,
