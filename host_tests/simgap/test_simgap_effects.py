@@ -120,9 +120,9 @@ def _lagged_loop_case(run=None):
 
 
 @pytest.mark.xfail(strict=False, reason="issue 22: the lag + hysteresis pair not both named at "
-                   "TEMPCOMP_SEED=3 (the loop alone on the reading, then the pair with the lagged "
-                   "loop held-out z 0.9 under the walk fitted beside it); 1-20 else pass, measured "
-                   "2026-11-29 on the lagged pair; before it 2, 3, 11 (15 until the lag/loop rule)")
+                   "TEMPCOMP_SEED=3 and 34 of 1-50 (the loop alone on the reading; at 3 the pair "
+                   "with the lagged loop then held-out z 0.9 under the walk fitted beside it), "
+                   "1.15x at 310559 (make test, 2026-11-29); before the lagged pair 2, 3, 11, 34")
 def test_hysteresis_on_the_lagged_temperature_found_with_its_lag():
     _lagged_loop_case()
 
