@@ -158,10 +158,11 @@ def test_temp_quantization_found_on_a_coarse_reading():
 # (select.Greedy._told_apart, without its staircase guard) failed - the loop named temp_rate on
 # all three axes.
 # Measured 2026-11-29 (a CI run failed at TEMPCOMP_SEED=710081, on main before that day's change
-# too): the loop, established on x, also passes the wander test on y or z, with temp_rate on
-# the other, where the noise model finds a small walk. Not read further yet; a guess to check:
-# the de-staired temperature's error at reversals depends on the branch, a loop-like residual on
-# every axis with a temperature slope.
+# too): the loop wins the first step on x and, established there, is borrowed onto y and z
+# (select.Greedy.run: judged there by the wander test alone), although temp_quantization, not the
+# loop, is significant on their held-out segments at that step (z 20-23); the loop then takes the
+# staircase's structure there (a 14-15 degC width; swapped for temp_rate on one axis). A lever
+# not tried: no borrowing onto an axis where a rival is significant held out at that step.
 STAIR_GAP = ("issue 22: on a whole-degree reading the loop is also claimed on an axis without it "
              "at TEMPCOMP_SEED=3 of 1-40 "
              "and at 710081 (the CI run); 1-40 else alone on x")
