@@ -684,14 +684,7 @@ class Greedy:
                 # per-run constant beside an unmodelled warm-up makes the segments' runs
                 # worse, and the warm-up alone is masked by the runs' steps). The test's
                 # false-positive rate (Z_WANDER) holds for it as for any other claim.
-                # ... but not onto an axis whose held-out segments, at this step, hold another
-                # effect significant and not this one: that axis's own evidence points elsewhere,
-                # and the borrowed effect would take that effect's structure (a loop on a
-                # whole-degree reading, borrowed onto axes where temp_quantization was
-                # significant, took the staircase there: TEMPCOMP_SEED=3 and 710081).
-                rival_here = any(n != win and a in trials[n] and trials[n][a]["significant"]
-                                 for n in sig)
-                take = v["significant"] or (established and not rival_here)
+                take = v["significant"] or established
                 if not take:
                     continue
                 self._refined(v, a, win)
