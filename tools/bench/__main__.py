@@ -7,11 +7,11 @@ runs first, the others in name order. On-device figures come from the real inter
 may be busy. ``python -m tools bench [AREA ...]`` runs only the named areas.
 
 Every figure is also written to the record ``docs/bench.json`` (the areas run replace theirs,
-the others stay; an area that raises keeps its previous figures), and the figure tables of README.md and docs/ are rendered from that record
-(tools/bench/figures.py), so what the pages show is one run's output; ``--no-write`` leaves
-both alone, ``--docs`` only renders the pages again from the record. A check a figure fails
-(a budget printed OVER, a heap-locked run that allocated) makes the exit status 1, after every
-area has run.
+the others stay; an area that raises keeps its previous figures), and the figure tables of
+README.md and docs/ are rendered from that record (tools/bench/figures.py), so what the pages
+show is one run's output; ``--no-write`` leaves both alone, ``--docs`` only renders the pages
+again from the record. A check a figure fails (a budget printed OVER, a heap-locked run that
+allocated) makes the exit status 1, after every area has run.
 """
 
 import argparse
