@@ -69,12 +69,20 @@ JOINT = (("turn_on_bias", "drift"),)
 # the reading misses its late reversals and the lag takes the loop's branch offsets, and a
 # noise model fitted beside them takes the rest (measured: the lagged-loop unit test, no
 # verdict at TEMPCOMP_SEED=2 and 11 - a 7 LSB lag and a 12 LSB loop on a 2 LSB floor). Their
-# shapes are searched together (Greedy._lagged_pair).
-LAGGED = (("temp_rate", "hysteresis"),)
+# shapes are searched together (Greedy._lagged_pair, written for this one pair: the lag's
+# time constants and the loop's (width, lag) shapes).
+LAGGED = ("temp_rate", "hysteresis")
 
 
 def needs(a, b):
     return NEEDS.get(frozenset({a, b}), "an experiment that varies them independently")
+
+
+def _bic(res, df):
+    """BIC of a GLS fit from its in-sample innovations (Gaussian, variance profiled out) with
+    df free columns (the base's columns, common to the fits it is compared with, left out)."""
+    n = len(res["ins"])
+    return 0.5 * n * np.log(max(float(np.sum(res["ins"] ** 2)), 1e-300)) + 0.5 * df * np.log(n)
 
 
 def _same_shape(a, b):
@@ -425,10 +433,8 @@ class Greedy:
         scored = []
         for shape in shapes:
             res = self.prob.evaluate(axis, self.state[axis] + [(name, shape)], withheld=False)
-            n = len(res["ins"])
             df = self._effect_df(axis, name, shape)
-            bic = 0.5 * n * np.log(max(float(np.sum(res["ins"] ** 2)), 1e-300)) + 0.5 * df * np.log(n)
-            scored.append((bic, len(scored), shape, res, df))
+            scored.append((_bic(res, df), len(scored), shape, res, df))
         _, _, shape, res, df = min(scored, key=lambda b: b[:2])
         trial = {"name": name, "shape": shape, "res": res, "df": df, "grid": len(shapes)}
         # The best shape with fewer columns, kept as a second chance (_simpler): on a grid
@@ -622,8 +628,7 @@ class Greedy:
         for a in range(3):
             if not any(a in tr for tr in trials.values()):
                 continue
-            blocks = self._saturated(trials, a)
-            info = self.noise_for(a, blocks)
+            info = self.noise_for(a, self._saturated(trials, a))
             self.noise_info[a] = {"saturated": info}
             if info["model"].key() != self.prob.noise[a].key():
                 self.prob.set_noise(a, info["model"])
@@ -801,13 +806,12 @@ class Greedy:
                      "res": self.prob.evaluate(a, blocks, withheld=False),
                      "df": sum(v["df"] for v in tr), "grid": int(np.prod([v["grid"] for v in tr]))}
                 added |= self._add_joint(a, pair, v, blocks, nstats, pool)
-        for pair in LAGGED:
-            for a in range(3):
-                if self._joint_refused.get((pair, a)) == len(self.state[a]):
-                    continue
-                v = self._lagged_pair(a, pair, trials, rejected)
-                if v is not None:
-                    added |= self._add_joint(a, pair, v, v.pop("blocks"), nstats, pool)
+        for a in range(3):
+            if self._joint_refused.get((LAGGED, a)) == len(self.state[a]):
+                continue
+            v = self._lagged_pair(a, trials, rejected)
+            if v is not None:
+                added |= self._add_joint(a, LAGGED, v, v.pop("blocks"), nstats, pool)
         return added
 
     def _add_joint(self, a, pair, v, blocks, nstats, pool):
@@ -835,7 +839,7 @@ class Greedy:
                            "z_wander": float(z), "gain": float(gain)})
         return True
 
-    def _lagged_pair(self, a, pair, trials, rejected):
+    def _lagged_pair(self, a, trials, rejected):
         """The lag and the loop on its lagged temperature (LAGGED) as one candidate on axis a,
         where the lag is not in the state and the loop is not, or is on the reading (the
         state's loop is then replaced by the lagged one). Their shapes are chosen together
@@ -847,7 +851,7 @@ class Greedy:
         are each nothing in-sample is not looked for. The Bonferroni factor is the whole grid
         the pair is chosen from (every lag shape times every loop shape it allows); df the
         columns it adds. Returns the trial with its `blocks` (the proposed state), or None."""
-        lag_name, loop_name = pair
+        lag_name, loop_name = LAGGED
         st = self.state[a]
         have = dict(st)
         if lag_name in have or lag_name not in trials or a not in trials[lag_name]:
@@ -869,16 +873,16 @@ class Greedy:
             ins = [trials[lag_name][a], trials[loop_name][a]]
         if any(t.get("p_insample", 1.0) >= ALPHA_INSAMPLE for t in ins):
             return None
-        blocks, res, grid = self._lagged_shapes(a, base, w0, pair)
-        df = sum(self._effect_df(a, nm, sh) for nm, sh in blocks) - \
-            sum(self._effect_df(a, nm, sh) for nm, sh in st)
+        blocks, res, df, grid = self._lagged_shapes(a, base, w0)
+        if loop_name in have:
+            df -= self._effect_df(a, loop_name, w0)
         return {"name": loop_name, "shape": blocks[-1][1], "res": res, "df": max(1, df),
                 "grid": grid, "blocks": blocks}
 
-    def _lagged_shapes(self, a, base, w0, pair):
+    def _lagged_shapes(self, a, base, w0):
         """base + the LAGGED pair at the shapes BIC chooses (_lagged_pair), its residuals under
-        the axis's noise model, and the size of the grid searched."""
-        lag_name, loop_name = pair
+        the axis's noise model, the pair's columns, and the size of the grid searched."""
+        lag_name, loop_name = LAGGED
         ctx = self.prob.ctx
         lag, loop = BY_NAME[lag_name], BY_NAME[loop_name]
         taus = lag.shapes_given(ctx, base)
@@ -886,19 +890,17 @@ class Greedy:
         self.prob.prime(a, base)
 
         def bic(t_lag, s_loop):
-            blocks = base + [(lag_name, t_lag), (loop_name, s_loop)]
-            res = self.prob.evaluate(a, blocks, withheld=False)
-            n = len(res["ins"])
-            df = sum(self._effect_df(a, nm, sh) for nm, sh in blocks)
-            return (0.5 * n * np.log(max(float(np.sum(res["ins"] ** 2)), 1e-300))
-                    + 0.5 * df * np.log(n)), res, blocks
+            pair = [(lag_name, t_lag), (loop_name, s_loop)]
+            res = self.prob.evaluate(a, base + pair, withheld=False)
+            df = sum(self._effect_df(a, nm, sh) for nm, sh in pair)
+            return _bic(res, df), res, df, base + pair
 
         _, t_lag, lg = min(((bic(x, (w0, lg))[0], x, lg) for x in taus for lg in lag.time_constants(x)),
                            key=lambda b: b[0])
         widths = [s for s in loop.shapes_given(ctx, base + [(lag_name, t_lag)])
                   if isinstance(s, tuple) and s[1] == lg]
-        (_, res, blocks), _ = min(((bic(t_lag, s), s) for s in widths), key=lambda b: b[0][0])
-        return blocks, res, grid
+        (_, res, df, blocks), _ = min(((bic(t_lag, s), s) for s in widths), key=lambda b: b[0][0])
+        return blocks, res, df, grid
 
     def refine(self, passes=2):
         """Re-choose each added effect's shape with the others in place (BIC on the grid, then
