@@ -239,7 +239,8 @@ def diagnose(train, withheld=None, model=None):
     # 4. Coverage of the withheld log, then its one scoring (on half B alone when half A
     #    confirmed an effect: split is None when the withheld log lies outside the coverage).
     on_b = split is not None and (any(c["confirmed"] for c in g.confirmations)
-                                  or any(c["kept"] for c in g.step_rivals))
+                                  or any(c["kept"] for c in g.step_rivals)
+                                  or any(c["kept"] for c in g.borrow_checks))
     cov = {"train": coverage.describe(train)}
     extras = {"prob": prob, "base_train": base_t, "greedy": g}
     tob_shift = {}
@@ -530,6 +531,7 @@ def diagnose(train, withheld=None, model=None):
         "implausible": implausible,
         "pruned": [{"effect": n, "axis": AXES[a], "z": z} for n, a, z in pruned],
         "joint": _joint_json(g),
+        "borrow_checks": [dict(c, axis=AXES[c["axis"]]) for c in g.borrow_checks],
         "not_confirmed": not_confirmed,
         "not_identifiable": not_ident,
         "told_apart": apart,

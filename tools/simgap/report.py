@@ -89,6 +89,13 @@ def text(res):
                  f"the training log (z {c['z_train']:.2f}); on withheld half A, against that step moved to "
                  f"its best time there, z {c['z_withheld_a']:.2f} (needs {c['z_pass']:.2f}): "
                  + ("kept" if c["kept"] else "not kept"))
+    for c in res.get("borrow_checks", []):
+        p = c["p_withheld_a"]
+        L.append(f"{c['effect']} on {c['axis']}: established on other axes, but {c['rival']} (significant there) "
+                 f"fits this axis better on the training log by {c['bic_margin']:.1f} (BIC units); "
+                 + (f"on withheld half A it adds to {c['rival']} at p {p:.2g} (needs < {c['p_pass']:.3g}): "
+                    if p is not None else "no withheld log to tell them apart: ")
+                 + ("borrowed" if c["kept"] else "not borrowed"))
     for j in res.get("joint", []):
         L.append(f"judged together: {' + '.join(j['effects'])} on {','.join(j['axes'])} - each alone "
                  f"predicts the held-out segments worse (held-out z {', '.join(map(str, j['z']))}; "

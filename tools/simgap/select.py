@@ -143,6 +143,7 @@ class Greedy:
         self.confirm = None                     # half A of the withheld log (diagnose sets it)
         self.step_rival = None                  # half A against a moved unlogged step (same)
         self.confirmations = []                 # every use of it (_confirm)
+        self.borrow_checks = []                 # borrowed effects put to half A (_borrow_holds)
         self._consulted = {}    # (effect, axis) -> half A's p and its two parts (_consult)
         self._ncand = 1
         self._noise_cache = {}
@@ -693,6 +694,8 @@ class Greedy:
                 if not take:
                     continue
                 self._refined(v, a, win)
+                if not v["significant"] and not self._borrow_holds(a, win, v, trials):
+                    continue
                 with_ = self.state[a] + [(win, v["shape"])]
                 z, gain, i0 = self._wander_check(a, self.state[a], with_, win)
                 v.update(z_wander=z, loglik_gain=gain)
@@ -727,6 +730,47 @@ class Greedy:
                 for a, v in tr.items():
                     self.record.setdefault((n, a), v)
         return chosen
+
+    def _borrow_holds(self, a, win, v, trials):
+        """May the effect win, established on other axes, be borrowed onto axis a (where its
+        held-out trial v is not significant)? Not where an effect that is significant on a's
+        held-out segments at this step fits a's training log better (profile likelihood less
+        0.5 ln n per column, each at its refined shape: _told_apart's comparison) unless half
+        A of the withheld log says the borrowed effect adds to that rival (one-sided p of
+        the per-row predictive gain of state + rival + win over state + rival, coefficients
+        frozen from training, below the unlogged-step check's level: it asks whether the
+        rival is an adequate explanation, as that check does). With no withheld log it is
+        not borrowed there: one log cannot tell them apart. Measured: on a whole-degree
+        reading the loop, established on x, was borrowed onto y and z where
+        temp_quantization was significant (z 20-23) and fitted better (6-33 in BIC units);
+        the loop then took the staircase's structure (host_tests/simgap, the coarse-reading
+        tests, TEMPCOMP_SEED=3 and 710081). Refusing every borrow beside a significant rival
+        cost the real TofuPilot gyro's x its loop, which the drift (significant there) fits
+        better by 10.5 on training but which half A confirms beside the drift (p 4e-25;
+        docs/simgap.md, "Twelfth round"). Only ever keeps an effect out: a borrow passes
+        stage B's wander test just the same afterwards. Each check is recorded
+        (self.borrow_checks; a kept one moves the withheld log's scoring to half B)."""
+        rivals = [n for n in trials if n != win and a in trials[n] and trials[n][a]["significant"]]
+        if not rivals:
+            return True
+        st = self.state[a]
+        n = len(self.cur[a]["ins"])
+        b_win = self._profile_bic(a, st, win, v["shape"], n)
+        for rv in rivals:
+            sh = self._refine(a, st, rv, trials[rv][a]["shape"])
+            margin = self._profile_bic(a, st, rv, sh, n) - b_win
+            if not margin > 0:
+                continue
+            base = st + [(rv, sh)]
+            p = None if self.confirm is None else self.confirm(a, base, base + [(win, v["shape"])])
+            p_pass = float(stats.norm.sf(Z_STEP))
+            kept = p is not None and p < p_pass
+            self.borrow_checks.append({"effect": win, "axis": a, "rival": rv,
+                                       "bic_margin": float(margin), "p_withheld_a": p,
+                                       "p_pass": p_pass, "kept": bool(kept)})
+            if not kept:
+                return False
+        return True
 
     def _told_apart(self, win, sig, trials, step):
         """A thermal lag and a hysteresis (both split heating from cooling) significant on
