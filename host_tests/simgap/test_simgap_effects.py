@@ -12,6 +12,7 @@ from tools.simgap.diagnose import diagnose
 from tools.simgap.effects import BY_NAME
 from tools.simgap.features import Context, Prepared
 from tools.simgap.logio import Log
+from tools.simgap.report import text
 
 
 def _prepared(t, T):
@@ -157,19 +158,6 @@ def test_temp_quantization_found_on_a_coarse_reading():
 # None: this run's data. 415318: the run whose data a first version of the lag/loop rule
 # (select.Greedy._told_apart, without its staircase guard) failed - the loop named temp_rate on
 # all three axes.
-# Measured 2026-11-29 (a CI run failed at TEMPCOMP_SEED=710081, on main before that day's change
-# too): the loop wins the first step on x and, established there, is borrowed onto y and z
-# (select.Greedy.run: judged there by the wander test alone), although temp_quantization, not the
-# loop, is significant on their held-out segments at that step (z 20-23); the loop then takes the
-# staircase's structure there (a 14-15 degC width; swapped for temp_rate on one axis). No
-# borrowing onto an axis where a rival is significant held out mended both, but cost the real
-# TofuPilot gyro's x its borrowed loop and drift, which its withheld log confirms (docs/simgap.md,
-# "Eleventh round"): not landed.
-STAIR_GAP = ("issue 22: on a whole-degree reading the loop is also claimed on an axis without it "
-             "at TEMPCOMP_SEED=3 of 1-40 "
-             "and at 710081 (the CI run); 1-40 else alone on x")
-
-
 def _coarse_reading_loop(run):
     # The loop acts on the true temperature; the reading is whole degrees.
     log = make(lambda t, T, r: 3 * (play(T, 6.0) - T), n=N, sigma=1.0,
@@ -189,12 +177,24 @@ def test_hysteresis_behind_a_coarse_reading_found_with_the_staircase(run):
     assert res["final"]["ratio_to_noise"]["x"] < 1.1
 
 
-@pytest.mark.xfail(strict=False, reason=STAIR_GAP)
-def test_coarse_reading_loop_claimed_on_its_axis_alone():
-    # y and z carry the offset law and the staircase only; nothing but temp_quantization belongs
-    # there.
-    _, axes = _coarse_reading_loop(None)
+# The loop won the first step on x and, established there, was borrowed onto y and z (judged
+# there by the wander test alone), although temp_quantization, not the loop, was significant on
+# their held-out segments and fitted them better: it then took the staircase's structure there
+# (TEMPCOMP_SEED=3 of 1-40, and 710081, where a CI run failed). select.Greedy._borrow_holds keeps
+# such a borrow out unless a withheld log confirms it; this log has none. 40 of TEMPCOMP_SEED
+# 1-40 pass (2026-11-29; main before: 37).
+@pytest.mark.parametrize("run", [None, 3, 710081])
+def test_coarse_reading_loop_claimed_on_its_axis_alone(run):
+    # y and z carry the offset law and the staircase only; the loop does not belong there.
+    res, axes = _coarse_reading_loop(run)
     assert axes.get("hysteresis") == ["x"], axes
+    checks = [c for c in res["borrow_checks"] if c["effect"] == "hysteresis"]
+    for c in checks:
+        # No withheld log: nothing to tell the borrowed loop from its better-fitting rival.
+        assert c["axis"] != "x" and c["p_withheld_a"] is None and not c["kept"], c
+        assert c["bic_margin"] > 0
+        assert (f"hysteresis on {c['axis']}: established on other axes, but {c['rival']}" in text(res)
+                and "no withheld log to tell them apart: not borrowed" in text(res))
 
 
 def test_nothing_claimed_on_the_plain_model():
