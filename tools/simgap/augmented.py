@@ -14,7 +14,7 @@ SCHEMA = "tempcomp.simgap.model/1"
 # Term names per effect, in the order of the effect's regressor columns (effects.py).
 TERMS = {
     "temp_rate": ("D1", "D1_dT", "D2", "D2_dT", "D1_sq", "ref_D1", "ref_D2"),
-    "temp_quantization": ("e", "e_dT", "e_ref"),
+    "temp_quantization": ("e", "e_dT", "e_ref", "soak"),    # soak: only with soaks in training
 }
 SUPPLY_TERMS = {"linear": ("v",), "quadratic": ("v", "v_sq"), "linear+ratiometric": ("v", "v_ref"),
                 "quadratic+ratiometric": ("v", "v_sq", "v_ref"),
@@ -215,7 +215,10 @@ def _effect_value(model, e, log, p, axis, T, dT, ref):
         return v
     if n == "temp_quantization":
         u = F.unstair(p, e["smooth"]) - T
-        return c["e"] * u + c["e_dT"] * u * dT + c["e_ref"] * u * ref
+        v = c["e"] * u + c["e_dT"] * u * dT + c["e_ref"] * u * ref
+        if "soak" in c:
+            v = v + c["soak"] * F.soak_weight(p)
+        return v
     if n == "turn_on_bias":
         return np.zeros(len(log))   # a constant captured per power-on (host_check removes it)
     raise ValueError(n)

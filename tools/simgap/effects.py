@@ -343,7 +343,16 @@ class TempQuantization(Effect):
 
     def columns(self, ctx, p, shape, axis):
         e = F.unstair(p, shape) - p.log.temp
-        return np.column_stack([e, e * p.d, e * p.r[:, axis]])
+        cols = [e, e * p.d, e * p.r[:, axis]]
+        if ctx.soaks:
+            # In a soak the reading sits on one step for far longer than a ramp takes to cross
+            # it: where inside that step the true temperature sits is unknown (unstair holds
+            # the step's value), so the offset there is known only to slope x step. On a
+            # ramp the mid-step crossings pin it. Measured: the coarse-reading loop test's y
+            # and z (soaks 0.37 degC below the step's value), where without this column a
+            # temp_rate took the soaks' error on 8 of TEMPCOMP_SEED 1-40.
+            cols.append(F.soak_weight(p))
+        return np.column_stack(cols)
 
 
 class UnloggedStep(Effect):

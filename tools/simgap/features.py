@@ -32,6 +32,8 @@ class Context:
             self.supply_std = float(np.std(train.supply)) or 1.0
         self.sensor = train.meta.get("sensor", "gyro").strip().lower()
         self.quantised = quant_step(train) is not None
+        # A coarse reading with soaks (unstair: a step held far longer than a ramp crosses one)
+        self.soaks = self.quantised and bool(np.any(soak_weight(Prepared(train, self, None)) > 0))
         from .coverage import SPAN_SLOPE, base_identified
         self.base = base_identified(train)      # axis -> ([5 flags], [reasons])
         self.temp_law = (self.tmax - self.tmin) >= SPAN_SLOPE
@@ -153,6 +155,7 @@ def unstair(p, smooth):
         return p.cache[key]
     t, T = p.log.t, p.log.temp
     est = T.astype(float).copy()
+    soak = np.zeros(len(T))
     gaps = []
     for a, b in _restart_ranges(p.restart):
         Ts, ts = T[a:b], t[a:b]
@@ -178,6 +181,7 @@ def unstair(p, smooth):
                 w0 = np.clip(1 - (tt - tc[k]) / g0, 0, 1)
                 w1 = np.clip(1 - (tc[k + 1] - tt) / g0, 0, 1)
                 est[a:b][sel] = rd + (vc[k] - rd) * w0 + (vc[k + 1] - rd) * w1
+                soak[a:b][sel] = np.clip(1 - w0 - w1, 0, 1)
             gaps.append(g0)
     if smooth > 0 and gaps:
         dt = np.median(np.diff(t)) if len(t) > 1 else 1.0
@@ -189,4 +193,13 @@ def unstair(p, smooth):
                     pad = np.r_[np.full(w // 2, est[a]), est[a:b], np.full(w - 1 - w // 2, est[b - 1])]
                     est[a:b] = np.convolve(pad, k, mode="valid")
     p.cache[key] = est
+    p.cache[("soak",)] = soak
     return est
+
+
+def soak_weight(p):
+    """1 where unstair held the reading through a soak (the true value's place inside the
+    step unknown), easing to 0 over one ramp gap at each end; 0 on ramps."""
+    if ("soak",) not in p.cache:
+        unstair(p, 0.0)
+    return p.cache[("soak",)]
