@@ -47,6 +47,25 @@ def test_unstair_recovers_a_ramp_behind_a_coarse_reading():
     assert np.sqrt(np.mean((reading[mid] - true[mid]) ** 2)) > 0.25
 
 
+def test_soak_weight_marks_held_steps_not_ramps():
+    # The synthetic profile soaks at 25, 50, 0 and 45 degC between linear ramps (simgap_synth);
+    # read in whole degrees, a soak holds one step for 240 samples, a ramp crosses one every 20.
+    t, T = profile(3000)
+    p = _prepared(t, np.round(T + 0.37))
+    w = F.soak_weight(p)
+    at = lambda f: w[int(f * (len(t) - 1))]   # noqa: E731
+    assert [at(f) for f in (0.29, 0.54, 0.79)] == [1.0, 1.0, 1.0]          # mid-soak
+    assert [at(f) for f in (0.16, 0.42, 0.66, 0.92)] == [0.0, 0.0, 0.0, 0.0]  # mid-ramp
+    assert p.log is not None and Context(p.log).soaks
+    # A staircase without soaks gets no soak column; a fine reading none at all.
+    ramp = _prepared(np.arange(2000.0), np.round(10 + np.arange(2000.0) * 0.01))
+    assert not Context(ramp.log).soaks and not np.any(F.soak_weight(ramp))
+    assert not Context(_prepared(t, T).log).soaks
+    cols = BY_NAME["temp_quantization"].columns
+    assert cols(Context(p.log), p, 0.0, 0).shape[1] == 4
+    assert cols(Context(ramp.log), ramp, 0.0, 0).shape[1] == 3
+
+
 def _lag(t, T, tau):
     y, v = [], T[0]
     for i in range(len(T)):

@@ -181,7 +181,11 @@ def unstair(p, smooth):
                 w0 = np.clip(1 - (tt - tc[k]) / g0, 0, 1)
                 w1 = np.clip(1 - (tc[k + 1] - tt) / g0, 0, 1)
                 est[a:b][sel] = rd + (vc[k] - rd) * w0 + (vc[k + 1] - rd) * w1
-                soak[a:b][sel] = np.clip(1 - w0 - w1, 0, 1)
+                # Where a ramp changes the reading every sample, the reading resolves the
+                # ramps and a held value is a constant temperature, not an unknown place
+                # inside a step (an exact synthetic soak, or a fine reading on a fast ramp).
+                if g0 > 1.5 * float(np.median(np.diff(ts))):
+                    soak[a:b][sel] = np.clip(1 - w0 - w1, 0, 1)
             gaps.append(g0)
     if smooth > 0 and gaps:
         dt = np.median(np.diff(t)) if len(t) > 1 else 1.0
