@@ -94,7 +94,8 @@ def text(res):
         L.append(f"{c['effect']} on {c['axis']}: established on other axes, but {c['rival']} (significant there) "
                  f"fits this axis better on the training log by {c['bic_margin']:.1f} (BIC units); "
                  + (f"on withheld half A it adds to {c['rival']} at p {p:.2g} (needs < {c['p_pass']:.3g}): "
-                    if p is not None else "no withheld log to tell them apart: ")
+                    if p is not None else "no withheld half A to tell them apart (no withheld log, or too few "
+                    "of its rows inside the training coverage): ")
                  + ("borrowed" if c["kept"] else "not borrowed"))
     for j in res.get("joint", []):
         L.append(f"judged together: {' + '.join(j['effects'])} on {','.join(j['axes'])} - each alone "

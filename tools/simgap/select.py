@@ -739,8 +739,9 @@ class Greedy:
         A of the withheld log says the borrowed effect adds to that rival (one-sided p of
         the per-row predictive gain of state + rival + win over state + rival, coefficients
         frozen from training, below the unlogged-step check's level: it asks whether the
-        rival is an adequate explanation, as that check does). With no withheld log it is
-        not borrowed there: one log cannot tell them apart. Measured: on a whole-degree
+        rival is an adequate explanation, as that check does). With no half A (no withheld
+        log, or too few of its rows inside the training coverage) it is not borrowed there:
+        one log cannot tell them apart. Measured: on a whole-degree
         reading the loop, established on x, was borrowed onto y and z where
         temp_quantization was significant (z 20-23) and fitted better (6-33 in BIC units);
         the loop then took the staircase's structure (host_tests/simgap, the coarse-reading
