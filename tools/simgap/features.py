@@ -173,7 +173,11 @@ def unstair(p, smooth):
             # A soak between two crossings: the true value sat somewhere inside one step for
             # far longer than a ramp takes to cross it, so a straight line from crossing to
             # crossing is wrong; hold the reading, easing from each crossing over one
-            # typical ramp gap.
+            # typical ramp gap. Where a ramp changes the reading every sample, the reading
+            # resolves the ramps and a held value is a constant temperature, not an unknown
+            # place inside a step (an exact synthetic soak, or a fine reading on a fast ramp):
+            # no soak weight then.
+            stairs = g0 > 1.5 * float(np.median(np.diff(ts)))
             for k in np.flatnonzero(g > 4 * g0):
                 sel = (ts > tc[k]) & (ts < tc[k + 1])
                 tt = ts[sel]
@@ -181,10 +185,7 @@ def unstair(p, smooth):
                 w0 = np.clip(1 - (tt - tc[k]) / g0, 0, 1)
                 w1 = np.clip(1 - (tc[k + 1] - tt) / g0, 0, 1)
                 est[a:b][sel] = rd + (vc[k] - rd) * w0 + (vc[k + 1] - rd) * w1
-                # Where a ramp changes the reading every sample, the reading resolves the
-                # ramps and a held value is a constant temperature, not an unknown place
-                # inside a step (an exact synthetic soak, or a fine reading on a fast ramp).
-                if g0 > 1.5 * float(np.median(np.diff(ts))):
+                if stairs:
                     soak[a:b][sel] = np.clip(1 - w0 - w1, 0, 1)
             gaps.append(g0)
     if smooth > 0 and gaps:

@@ -756,15 +756,15 @@ class Greedy:
             return True
         st = self.state[a]
         n = len(self.cur[a]["ins"])
-        b_win = self._profile_bic(a, st, win, v["shape"], n)
+        b_win = self._profile_bic(a, st, win, v["shape"], n)   # v's shape is refined (run())
+        p_pass = float(stats.norm.sf(Z_STEP))
         for rv in rivals:
-            sh = self._refine(a, st, rv, trials[rv][a]["shape"])
-            margin = self._profile_bic(a, st, rv, sh, n) - b_win
+            sh, b_rv = self._trial_profile_bic(a, rv, trials[rv][a], n)
+            margin = b_rv - b_win
             if not margin > 0:
                 continue
             base = st + [(rv, sh)]
             p = None if self.confirm is None else self.confirm(a, base, base + [(win, v["shape"])])
-            p_pass = float(stats.norm.sf(Z_STEP))
             kept = p is not None and p < p_pass
             self.borrow_checks.append({"effect": win, "axis": a, "rival": rv,
                                        "bic_margin": float(margin), "p_withheld_a": p,
@@ -813,8 +813,7 @@ class Greedy:
             n = len(self.cur[a]["ins"])
             b = {}
             for name in (win, rival):
-                sh = self._refine(a, self.state[a], name, trials[name][a]["shape"])
-                b[name] = self._profile_bic(a, self.state[a], name, sh, n)
+                b[name] = self._trial_profile_bic(a, name, trials[name][a], n)[1]
             if not b[rival] > b[win]:
                 step["profile_choice"]["lost_on"] = a
                 return win
@@ -1030,6 +1029,12 @@ class Greedy:
                 break
             sh, info = sh2, i2
         return sh, info
+
+    def _trial_profile_bic(self, a, name, trial, n):
+        """(shape, _profile_bic) of a step's trial of name on axis a over the current state,
+        its shape refined first (_refine): how _told_apart and _borrow_holds compare rivals."""
+        sh = self._refine(a, self.state[a], name, trial["shape"])
+        return sh, self._profile_bic(a, self.state[a], name, sh, n)
 
     def _profile_bic(self, a, others, name, shape, n):
         """Profile log-likelihood of others + (name, shape) less 0.5 ln n per column."""
