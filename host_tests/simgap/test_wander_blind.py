@@ -102,9 +102,9 @@ def test_final_withheld_rms_within_1_25x_the_oracle_floor(rows, situation):
         {a: round(r["sim_only_rms"][a] / r["oracle_floor"][a], 2) for a in wander.AXES})
 
 
-# Misses the sweeps found and the eighth and ninth rounds of 2026-11-29 mended, each at its own
-# seed (the generator's truth, read after the diagnosis, says what is planted; nothing here is the
-# tool's own output copied back). They fail on the code before the mend.
+# Misses the sweeps found and the eighth, ninth and thirteenth rounds (2026-11-29) mended, each at
+# its own seed (the generator's truth, read after the diagnosis, says what is planted; nothing here
+# is the tool's own output copied back). They fail on the code before the mend.
 MENDED = [
     # A straight aging line on z (-3.65 LSB/h on a 0.68 LSB white floor) chosen by the BIC as
     # exponential + line, whose exponential extrapolates wildly into a held-out first segment
@@ -133,6 +133,12 @@ MENDED = [
     # the wander check then refused it), the lag on x alone, so the two were never compared and
     # the loop took x: named hysteresis, 4.01x. Compared where both are significant: the lag.
     ("lag_rw", 28),
+    # The warm-up on x named alone, but z (nothing planted) at 1.45x: z's walk (K 0.022
+    # LSB/sqrt(s)) moved 0.5 LSB RMS over the training log - its noise model white - and 2.9
+    # over the withheld one, whose level was then scored as error. The withheld residual's own
+    # walk test (diagnose: withheld_walk) scores that power-on less its mean, as on an axis whose
+    # training bias walks (test_wander_withheld_walk.py builds the case at random seeds).
+    ("rw_drift", 182),
 ]
 
 
