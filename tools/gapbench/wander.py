@@ -265,8 +265,11 @@ def _log(rng, prog, table_axis):
     return {"t": t, "chamber": ch, "table_axis": table_axis}
 
 
-def make_case(situation, seed, index=0):
-    """One labelled case: {"train": log, "withheld": log, "truth": {...}} (logs as arrays)."""
+def make_case(situation, seed, index=0, reading_lsb=None):
+    """One labelled case: {"train": log, "withheld": log, "truth": {...}} (logs as arrays).
+    reading_lsb: the temperature reading's step in degC (default T_LSB, an MPU-6050's; 1.0 a
+    whole-degree reading, as a temperature register that counts whole degrees gives). Every
+    random draw is the same for any step, so a coarse case is the fine case read coarsely."""
     if situation not in _PLAN:
         raise ValueError("unknown situation %r (one of %s)" % (situation, ", ".join(SITUATIONS)))
     effect, has_rw, has_gm, in_cat = _PLAN[situation]
@@ -280,7 +283,8 @@ def make_case(situation, seed, index=0):
         n = len(lg["t"])
         # the part's own temperature, read by its sensor (the logged column)
         lg["temp_true"] = first_order_lag(lg["chamber"], ROW_S, pkg_tau) + heat
-        lg["temp_c"] = np.round((lg["temp_true"] + T_NOISE * rng.standard_normal(n)) / T_LSB) * T_LSB
+        step = T_LSB if reading_lsb is None else float(reading_lsb)
+        lg["temp_c"] = np.round((lg["temp_true"] + T_NOISE * rng.standard_normal(n)) / step) * step
         lg["ref"] = {a: (turntable(rng, n) if a == table_axis else np.zeros(n)) for a in AXES}
         lg["humid_step_s"] = lg["t"][-1] * rng.uniform(0.2, 0.6)
     lo_tr, hi_tr = logs["train"]["temp_c"].min(), logs["train"]["temp_c"].max()
@@ -301,6 +305,7 @@ def make_case(situation, seed, index=0):
              "no_verdict_expected": effect is None,
              "off_catalogue_effects": {a: (["humidity_step"] if a in humid_axes else []) for a in AXES},
              "in_catalogue": in_cat, "axes": {}}
+    truth["reading_lsb_c"] = T_LSB if reading_lsb is None else float(reading_lsb)
     truth["rows"] = {k: len(v["t"]) for k, v in logs.items()}
     truth["temp_range_c"] = {k: [float(v["temp_c"].min()), float(v["temp_c"].max())] for k, v in logs.items()}
     for a in AXES:
