@@ -206,7 +206,7 @@ def test_hysteresis_behind_a_coarse_reading_named_on_its_axis_with_the_staircase
     assert res["final"]["ratio_to_noise"]["x"] < 1.1
     for c in res["borrow_checks"]:
         # No withheld log: nothing tells a borrowed effect from its better-fitting rival.
-        assert c["p_withheld_a"] is None and not c["kept"] and c["bic_margin"] > 0, c
+        assert c["p_withheld_a"] is None and not c["kept"], c
         assert (f"{c['effect']} on {c['axis']}: established on other axes, but {c['rival']}" in text(res)
                 and "no withheld half A to tell them apart (no withheld log" in text(res))
 

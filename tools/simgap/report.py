@@ -91,8 +91,12 @@ def text(res):
                  + ("kept" if c["kept"] else "not kept"))
     for c in res.get("borrow_checks", []):
         p = c["p_withheld_a"]
-        L.append(f"{c['effect']} on {c['axis']}: established on other axes, but {c['rival']} (significant there) "
-                 f"fits this axis better on the training log by {c['bic_margin']:.1f} (BIC units); "
+        m = c["bic_margin"]
+        fit = (f"{c['rival']} (significant there) fits this axis better on the training log by {m:.1f} "
+               "(BIC units)" if m > 0 else
+               f"{c['rival']} is significant there and {c['effect']} makes its held-out segments worse "
+               f"(z {c['z_heldout']:.1f}; on the training log it fits better by {-m:.1f} BIC units)")
+        L.append(f"{c['effect']} on {c['axis']}: established on other axes, but {fit}; "
                  + (f"on withheld half A it adds to {c['rival']} at p {p:.2g} (needs < {c['p_pass']:.3g}): "
                     if p is not None else "no withheld half A to tell them apart (no withheld log, or too few "
                     "of its rows inside the training coverage): ")

@@ -734,23 +734,31 @@ class Greedy:
     def _borrow_holds(self, a, win, v, trials):
         """May the effect win, established on other axes, be borrowed onto axis a (where its
         held-out trial v is not significant)? Not where an effect that is significant on a's
-        held-out segments at this step fits a's training log better (profile likelihood less
-        0.5 ln n per column, each at its refined shape: _told_apart's comparison) unless half
-        A of the withheld log says the borrowed effect adds to that rival (one-sided p of
-        the per-row predictive gain of state + rival + win over state + rival, coefficients
+        held-out segments at this step stands against it and the training log does not back
+        the borrow - the rival fits a's training log better (profile likelihood less 0.5 ln n
+        per column, each at its refined shape: _told_apart's comparison), or the borrowed
+        effect makes a's held-out segments worse (held-out z below -Z_STEP) - unless half A of
+        the withheld log says the borrowed effect adds to that rival (one-sided p of the
+        per-row predictive gain of state + rival + win over state + rival, coefficients
         frozen from training, below the unlogged-step check's level: it asks whether the
         rival is an adequate explanation, as that check does). With no half A (no withheld
         log, or too few of its rows inside the training coverage) it is not borrowed there:
-        one log cannot tell them apart. Measured: on a whole-degree
-        reading the loop, established on x, was borrowed onto y and z where
-        temp_quantization was significant (z 20-23) and fitted better (6-33 in BIC units);
-        the loop then took the staircase's structure (host_tests/simgap, the coarse-reading
-        tests, TEMPCOMP_SEED=3 and 710081). Refusing every borrow beside a significant rival
-        cost the real TofuPilot gyro's x its loop, which the drift (significant there) fits
-        better by 10.5 on training but which half A confirms beside the drift (p 4e-25;
-        docs/simgap.md, "Twelfth round"). Only ever keeps an effect out: a borrow passes
-        stage B's wander test just the same afterwards. Each check is recorded
-        (self.borrow_checks; a kept one moves the withheld log's scoring to half B)."""
+        one log cannot tell them apart. Measured: on a whole-degree reading the loop,
+        established on x, was borrowed onto y and z where temp_quantization was significant
+        (z 20-23) and fitted better (6-33 in BIC units); the loop then took the staircase's
+        structure (host_tests/simgap, the coarse-reading tests, TEMPCOMP_SEED=3 and 710081).
+        On the wander generator with a 1 degC reading (hyst_rw seed 4) a loop 23 degC wide,
+        borrowed from y, fitted x better than temp_rate (significant there, as was
+        temp_quantization, z 21.0) by 131 BIC units while it made x's held-out segments
+        worse (z -10.4); half A says it adds nothing to temp_rate (p 0.99), and x takes
+        temp_quantization instead. Asking half A beside every significant rival is too much:
+        on the real TofuPilot gyro the loop, borrowed onto x at the first step (held-out z
+        +4.6, fitting x better than the significant temp_rate by 7.1), was then refused (half
+        A p 0.052) and x's withheld RMS went back from 145 to 659 mdps; and refusing every
+        borrow beside a significant rival cost that x its loop, which half A confirms beside
+        the drift (p 4e-25; docs/simgap.md, "Twelfth round"). Only ever keeps an effect out:
+        a borrow passes stage B's wander test just the same afterwards. Each check is
+        recorded (self.borrow_checks; a kept one moves the withheld log's scoring to half B)."""
         rivals = [n for n in trials if n != win and a in trials[n] and trials[n][a]["significant"]]
         if not rivals:
             return True
@@ -758,16 +766,18 @@ class Greedy:
         n = len(self.cur[a]["ins"])
         b_win = self._profile_bic(a, st, win, v["shape"], n)   # v's shape is refined (run())
         p_pass = float(stats.norm.sf(Z_STEP))
+        against = float(v.get("t", 0.0)) < -Z_STEP     # held out, it makes a worse
         for rv in rivals:
             sh, b_rv = self._trial_profile_bic(a, rv, trials[rv][a], n)
             margin = b_rv - b_win
-            if not margin > 0:
+            if not (margin > 0 or against):
                 continue
             base = st + [(rv, sh)]
             p = None if self.confirm is None else self.confirm(a, base, base + [(win, v["shape"])])
             kept = p is not None and p < p_pass
             self.borrow_checks.append({"effect": win, "axis": a, "rival": rv,
-                                       "bic_margin": float(margin), "p_withheld_a": p,
+                                       "bic_margin": float(margin),
+                                       "z_heldout": float(v.get("t", 0.0)), "p_withheld_a": p,
                                        "p_pass": p_pass, "kept": bool(kept)})
             if not kept:
                 return False
