@@ -36,6 +36,22 @@ def test_named_alone_needs_the_effect_on_its_axis_and_nothing_else():
     assert r["named"] and not r["alone"]
 
 
+def test_the_staircase_of_a_coarser_reading_is_the_readings_not_an_extra_effect():
+    t = truth(effects={"x": ["temp_rate"], "y": [], "z": []})
+    claims = {"x": ["temp_rate", "temp_quantization"], "y": ["temp_quantization"]}
+    r = wandercheck.score(result(claims), t)          # the generator's own fine reading
+    assert r["named"] and not r["alone"] and r["staircase_axes"] == []
+    r = wandercheck.score(result(claims), dict(t, reading_lsb_c=1.0))
+    assert r["named"] and r["alone"] and r["staircase_axes"] == ["x", "y"]
+    r = wandercheck.score(result({"y": ["temp_quantization"]}), dict(truth("white"), reading_lsb_c=1.0))
+    assert r["no_verdict"] and r["verdict"] == []
+    r = wandercheck.score(result({"y": ["temp_quantization", "drift"]}), dict(truth("white"), reading_lsb_c=1.0))
+    assert not r["no_verdict"] and r["verdict"] == ["drift"]
+    # staircase or not, the planted effect itself must still be named
+    r = wandercheck.score(result({"x": ["temp_quantization"]}), dict(t, reading_lsb_c=1.0))
+    assert not r["named"]
+
+
 def test_unexplained_residual_expected_above_1_5x_on_that_axis():
     t = truth()
     r = wandercheck.score(result({}, ratio=(1.6, 1.2, 1.5)), t)
@@ -88,3 +104,12 @@ def test_seed_lists(text, seeds):
 def test_bad_seed_lists_are_named(text):
     with pytest.raises(ValueError, match="seed"):
         wandercheck.parse_seeds(text)
+
+
+@pytest.mark.parametrize("step", ["0", "-1", "nan", "11"])
+def test_a_reading_step_that_is_no_temperature_step_is_named(step, capsys):
+    from tools.gapbench import check
+    with pytest.raises(SystemExit) as e:
+        check.main(["--set", "wander", "--seeds", "1", "--reading-lsb", step])
+    assert e.value.code == 2
+    assert "--reading-lsb %s: a temperature step in degC" % step in capsys.readouterr().err

@@ -133,6 +133,9 @@ def main(argv=None):
     ap.add_argument("--situations", help="wander: comma-separated subset of %s" % ",".join(wander.SITUATIONS))
     ap.add_argument("--jobs", type=int, default=min(2, os.cpu_count() or 1),
                     help="diagnoses run in parallel (default min(2, cores); gen: with --seeds)")
+    ap.add_argument("--reading-lsb", type=float, help="wander: read the temperature in steps of this "
+                                                       "many degC (default the generator's 1/340; 1 = whole "
+                                                       "degrees); temp_quantization is then the reading's")
     ap.add_argument("--json", help="wander: write every log's scores here")
     ap.add_argument("-v", "--verbose", action="store_true", help="wander: one line per log as it finishes")
     a = ap.parse_args(argv)
@@ -158,6 +161,9 @@ def main(argv=None):
             if bad or a.logs < 1 or a.jobs < 1:
                 raise ValueError("unknown situation(s) %s (one of %s)" % (",".join(bad), ",".join(wander.SITUATIONS))
                                  if bad else "--logs and --jobs must be >= 1")
+            if a.reading_lsb is not None and not (0 < a.reading_lsb <= 10):
+                raise ValueError("--reading-lsb %g: a temperature step in degC, above 0 and at most 10"
+                                 % a.reading_lsb)
         except ValueError as e:
             ap.error(str(e))
         if a.which == "both":
@@ -168,7 +174,8 @@ def main(argv=None):
             if a.verbose:
                 print("[%d/%d] %s" % (k, n, wandercheck.log_line(row)), flush=True)
 
-        wrows = wandercheck.run(seeds, a.logs, sits, a.jobs, a.keep and os.path.join(a.keep, "wander"), progress)
+        wrows = wandercheck.run(seeds, a.logs, sits, a.jobs, a.keep and os.path.join(a.keep, "wander"), progress,
+                                a.reading_lsb)
         ok &= wandercheck.report(wrows)
         wall = time.perf_counter() - t0
         diag = sum(r["diagnose_s"] for r in wrows)
