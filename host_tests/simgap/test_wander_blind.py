@@ -24,7 +24,8 @@ EFFECT_SITUATIONS = [s for s in wander.SITUATIONS if s not in wandercheck.NO_VER
 # (71-270, 2026-11-28) then measured its rate. The heavy lag's named-alone check got one when the
 # seventh round's sweep of seeds 71-110 missed at 94, and lost it when the ninth round mended that
 # confusion (seeds 41-110 on the landed code and 111-200 on its unguarded first version, 160
-# seeds, no miss). Every other check must pass at any seed.
+# seeds, no miss). The hysteresis under a walk got its two back on 2026-11-29 (thirteenth round),
+# when fresh seed 201 missed. Every other check must pass at any seed.
 KNOWN_GAPS = {
     ("no_verdict", "off_catalogue"): "issue 22: a verdict on 1/80 seeds 1-80 on the code of"
         " 2026-11-29, tenth round, and 1/120 seeds 1-120 on the ninth's (69: a drift on x - the"
@@ -38,6 +39,12 @@ KNOWN_GAPS = {
         " missed at WANDER_SEED=10255 and 46378 (CI runs of 2026-11-28, older code)",
     ("rms", "aging"): "issue 22: within 1.25x on 79/80 seeds 1-80 on the code of 2026-11-29 (59:"
         " 1.38x); also missed at WANDER_SEED=10255 (1.79x) and 46378 (older code)",
+    ("alone", "hyst_rw"): "issue 22: named alone on 99 of 100 seeds swept on the code of 2026-11-29,"
+        " thirteenth round (1-20, 41-60, 181-240, docs/simgap.md; 201: a loop of 6.4 LSB, 2.7 degC wide, on x under a"
+        " walk the noise model read at twice its true K - 0.103 against 0.048 LSB/sqrt(s) - which"
+        " took the loop: nothing named, held-out x 1.91 -> 1.84 with it)",
+    ("rms", "hyst_rw"): "issue 22: within 1.25x on 99 of 100 seeds swept on the code of 2026-11-29,"
+        " thirteenth round (201: 2.28x, the loop above not named; 1.23x the tool's own model floor)",
     ("alone", "lag_rw"): "issue 22: named alone on 80/80 seeds 1-80 on the code of 2026-11-29 (tenth"
         " round); still missed at WANDER_SEED=16153 (a CI run of 2026-11-28: the lag on x vetoed on"
         " the withheld log, its shrink's 90 % interval reaching below 0 under the walk); 28, 113 and"
