@@ -88,7 +88,8 @@ def score(res, truth):
     got = claims(res)
     verdict = list(res.get("verdict", []))
     staircase = []
-    if truth.get("reading_lsb_c", wander.T_LSB) > wander.T_LSB:
+    reading = truth.get("reading_lsb_c", wander.T_LSB)
+    if reading > wander.T_LSB:
         # a coarser reading than the generator's own: its staircase is the reading's
         staircase = [a for a in AXES if "temp_quantization" in got[a]]
         got = {a: [n for n in got[a] if n != "temp_quantization"] for a in AXES}
@@ -107,7 +108,7 @@ def score(res, truth):
         "alone": got == planted,
         "no_verdict": not verdict,
         "staircase_axes": staircase,
-        "reading_lsb_c": truth.get("reading_lsb_c", wander.T_LSB),
+        "reading_lsb_c": reading,
         "floor": "model" if "noise_model" in res else "white",
         "ratio_to_noise": {a: ratios.get(a) for a in AXES},
         "unwarned": unwarned,
@@ -252,7 +253,7 @@ def report(rows, out=sys.stdout):
     if extra:
         out.write("effects claimed where none was planted (axis-logs): %s\n" % ", ".join(
             "%s %d" % kv for kv in sorted(extra.items(), key=lambda kv: -kv[1])))
-    stair = [r for r in rows if "staircase_axes" in r and r.get("reading_lsb_c", 0) > wander.T_LSB]
+    stair = [r for r in rows if r["reading_lsb_c"] > wander.T_LSB]
     if stair:
         out.write("temperature read in steps of %g degC: temp_quantization (the reading's staircase, not "
                   "scored) on %d of %d axis-logs\n" % (stair[0]["reading_lsb_c"],

@@ -300,13 +300,7 @@ def diagnose(train, withheld=None, model=None):
         # training noise model's: a walk read on the scored log itself must not hide the
         # unexplained part of it.
         if separate and not outside:
-            idx = np.flatnonzero(rows)
-            tw0 = withheld.t[idx]
-            dtw = np.diff(tw0)
-            pos = dtw[dtw > 0]
-            brk = np.r_[True, (np.diff(wrun) != 0)
-                        | (dtw > 20 * (np.median(pos) if pos.size else 1.0))]
-            st_w = np.flatnonzero(brk)
+            st_w = prep.stretches(withheld.t[rows], wrun)
             for a in range(3):
                 if axis_wanders(a):
                     continue
@@ -315,9 +309,11 @@ def diagnose(train, withheld=None, model=None):
                 if m_w.walks:
                     withheld_walk[a] = m_w
 
-        dm = {}
-        for a in range(3):
-            dm[a] = separate and (axis_wanders(a) or a in withheld_walk)
+        def demeaned(a):
+            # each withheld run scored less its own mean: its level is unknowable
+            return separate and (axis_wanders(a) or a in withheld_walk)
+
+        dm = {a: demeaned(a) for a in range(3)}
 
         def scored(a, r):
             r = r[rows]
@@ -373,8 +369,7 @@ def diagnose(train, withheld=None, model=None):
                     not_confirmed.append(rec)
                     del g.state[a][worst[0]]
             g.finalise()
-            for a in range(3):
-                dm[a] = separate and (axis_wanders(a) or a in withheld_walk)
+            dm.update({a: demeaned(a) for a in range(3)})
             verdict[:] = [v for v in verdict if any(n == v for a in range(3) for n, _ in g.state[a])]
             order[:] = [v for v in order if v in verdict]
         base_w = np.column_stack([prob.full_residual(pw, a, []) for a in range(3)])

@@ -11,12 +11,18 @@ SPIKE_K = 12.0     # a sample this many robust noise sigmas off its local median
 def segments(log):
     """Start indices of contiguous stretches: a new run, or a time gap much longer than the
     usual sample step (the PAN log is 25 bursts; filters must not run across the gaps)."""
-    n = len(log)
+    return stretches(log.t, log.run)
+
+
+def stretches(t, run=None):
+    """segments() of any rows: times t (and run ids, or None), e.g. a subset of a log's rows,
+    whose own gaps (rows left out) count as the log's do."""
+    n = len(t)
     brk = np.zeros(n, bool)
     brk[0] = True
-    if log.run is not None:
-        brk[1:] |= np.diff(log.run) != 0
-    dt = np.diff(log.t)
+    if run is not None:
+        brk[1:] |= np.diff(run) != 0
+    dt = np.diff(t)
     pos = dt[dt > 0]
     if pos.size:
         brk[1:] |= dt > 20 * np.median(pos)

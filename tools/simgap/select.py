@@ -766,7 +766,8 @@ class Greedy:
         n = len(self.cur[a]["ins"])
         b_win = self._profile_bic(a, st, win, v["shape"], n)   # v's shape is refined (run())
         p_pass = float(stats.norm.sf(Z_STEP))
-        against = float(v.get("t", 0.0)) < -Z_STEP     # held out, it makes a worse
+        z_ho = float(v.get("t", 0.0))
+        against = z_ho < -Z_STEP      # held out, it makes a worse
         for rv in rivals:
             sh, b_rv = self._trial_profile_bic(a, rv, trials[rv][a], n)
             margin = b_rv - b_win
@@ -777,7 +778,7 @@ class Greedy:
             kept = p is not None and p < p_pass
             self.borrow_checks.append({"effect": win, "axis": a, "rival": rv,
                                        "bic_margin": float(margin),
-                                       "z_heldout": float(v.get("t", 0.0)), "p_withheld_a": p,
+                                       "z_heldout": z_ho, "p_withheld_a": p,
                                        "p_pass": p_pass, "kept": bool(kept)})
             if not kept:
                 return False
